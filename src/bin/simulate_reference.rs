@@ -1,0 +1,114 @@
+//! Simulates the reference motion of a model (default: the reference
+//! manipulator) with the Rust engine and writes a CSV with the FMU's
+//! variable names.
+//!
+//! Usage: simulate_reference [--model FILE] [--out FILE] [--interval S] [--h-max S] [--end S]
+
+use stick_slip_manipulator::motion::{reference_motion, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::{DriveInputs, Model, Simulator};
+use std::io::Write;
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("simulate_reference: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
+    let mut model_path = None;
+    let mut out = "results/reference.csv".to_string();
+    let mut interval = 1e-3;
+    let mut end = REFERENCE_RUN_TIME;
+    let mut h_max = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().ok_or_else(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--model" => model_path = Some(value()?),
+            "--out" => out = value()?,
+            "--interval" => interval = value()?.parse()?,
+            "--end" => end = value()?.parse()?,
+            "--h-max" => h_max = Some(value()?.parse::<f64>()?),
+            _ => return Err(format!("unknown argument {a}").into()),
+        }
+    }
+    let mut model = match model_path {
+        Some(p) => Model::from_file(p)?,
+        None => Model::reference_rrpr(),
+    };
+    if let Some(h) = h_max {
+        model.integrator.h_max = h;
+    }
+    let n = model.nq();
+    let motion = reference_motion();
+    if n != motion.len() {
+        return Err(format!("the reference motion drives 4 joints, the model has {n}").into());
+    }
+    let mut sim = Simulator::new(model)?;
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let inputs_at = |t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]| {
+        for (i, m) in motion.iter().enumerate() {
+            (q[i], qd[i], qdd[i]) = m.eval(t);
+        }
+    };
+    inputs_at(0.0, &mut q, &mut qd, &mut qdd);
+    sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None)?;
+    if let Some(dir) = std::path::Path::new(&out).parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    let mut file = std::io::BufWriter::new(std::fs::File::create(&out)?);
+    write_header(&mut file, n)?;
+    write_row(&mut file, &sim)?;
+    let steps = (end / interval).round() as usize;
+    let wall = std::time::Instant::now();
+    for k in 0..steps {
+        let t = k as f64 * interval;
+        inputs_at(t, &mut q, &mut qd, &mut qdd);
+        sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, interval)?;
+        write_row(&mut file, &sim)?;
+    }
+    eprintln!("simulated {end} s in {:.2} s wall; results in {out}", wall.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn write_header(w: &mut impl Write, n: usize) -> std::io::Result<()> {
+    let mut cols = vec!["time".to_string()];
+    for name in ["q", "qd", "qdd", "stick", "F_drive", "F_friction", "N_normal", "eps_joint"] {
+        cols.extend((1..=n).map(|i| format!("{name}[{i}]")));
+    }
+    for i in 1..=n {
+        cols.extend((1..=3).map(|k| format!("f[{i},{k}]")));
+        cols.extend((1..=3).map(|k| format!("n[{i},{k}]")));
+    }
+    cols.push("eps".into());
+    cols.extend((1..=3).map(|k| format!("x_E[{k}]")));
+    cols.extend(["E_kin", "E_pot", "E_spring", "W_drive", "Q_friction", "Q_damping"].map(String::from));
+    // Names such as f[1,2] contain a comma: quote them (RFC 4180).
+    let quoted: Vec<String> = cols.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.clone() }).collect();
+    writeln!(w, "{}", quoted.join(","))
+}
+
+fn write_row(w: &mut impl Write, sim: &Simulator) -> std::io::Result<()> {
+    let s = sim.state();
+    let n = s.nq();
+    let mut v = vec![s.time];
+    v.extend(&s.q);
+    v.extend(&s.qd);
+    v.extend(&s.qdd);
+    v.extend((0..n).map(|i| if s.is_stuck(i) { 1.0 } else { 0.0 }));
+    v.extend(&s.drive_force);
+    v.extend(&s.friction_force);
+    v.extend(&s.normal_load);
+    v.extend((0..n).map(|i| s.joint_error(i)));
+    for i in 0..n {
+        v.extend(s.reaction_force[i].iter());
+        v.extend(s.reaction_moment[i].iter());
+    }
+    v.push(s.end_point_error());
+    v.extend(s.end_point.iter());
+    let e = s.energy;
+    v.extend([e.kinetic, e.potential, e.spring, e.drive_work, e.friction_heat, e.damping_heat]);
+    let text: Vec<String> = v.iter().map(|x| format!("{x:.17e}")).collect();
+    writeln!(w, "{}", text.join(","))
+}

@@ -1,0 +1,73 @@
+//! The workspace of the algorithms: everything that is computed, sized once
+//! from the model so that nothing allocates on the hot path.
+
+use crate::math::{Mat3, Mat6, MatN, Vec3};
+use crate::model::Model;
+
+/// Kinematic and dynamic workspace of one model (Pinocchio's `Data`).
+///
+/// Index conventions: frame arrays (`rotation`, `origin`, `omega`, …) have n+1
+/// entries, index 0 being the base frame 0; joint arrays have n entries, index
+/// i−1 for joint i. All vectors are in frame 0 unless the name says otherwise.
+#[derive(Debug, Clone)]
+pub struct Data {
+    /// Rotation of frame i in frame 0, i = 0…n.
+    pub rotation: Vec<Mat3>,
+    /// Origin of frame i in frame 0, m.
+    pub origin: Vec<Vec3>,
+    /// Rotation of the joint frame of joint i: frame i−1 turned by θ_i about
+    /// its z, so z is the joint axis and the frame moves with link i.
+    pub joint_rotation: Vec<Mat3>,
+    /// Origin of the joint frame of joint i (frame i−1 origin shifted by d_i), m.
+    pub joint_origin: Vec<Vec3>,
+    /// Angular velocity of link i, rad/s.
+    pub omega: Vec<Vec3>,
+    /// Angular acceleration of link i, rad/s².
+    pub omega_dot: Vec<Vec3>,
+    /// Velocity of the origin of frame i, m/s.
+    pub velocity: Vec<Vec3>,
+    /// Acceleration of the origin of frame i minus gravity, m/s².
+    pub acceleration: Vec<Vec3>,
+    /// Velocity of the centre of mass of link i (joint array), m/s.
+    pub com_velocity: Vec<Vec3>,
+    /// Force f_i exerted by link i−1 on link i, N (joint array).
+    pub force: Vec<Vec3>,
+    /// Moment n_i exerted by link i−1 on link i about the origin of frame
+    /// i−1, N·m (joint array).
+    pub moment: Vec<Vec3>,
+    /// Generalized joint forces τ = M q̈ + bias of the last inverse dynamics.
+    pub tau: Vec<f64>,
+    /// Composite spatial inertia of links i…n about the origin of frame 0.
+    pub composite: Vec<Mat6>,
+    /// Joint-space mass matrix M(q) (study's D_si, eq. 3.9).
+    pub mass_matrix: MatN,
+    /// Joint force at the reaction reference point, in the joint frame, N.
+    pub reaction_force: Vec<Vec3>,
+    /// Joint moment about the reaction reference point, in the joint frame, N·m.
+    pub reaction_moment: Vec<Vec3>,
+}
+
+impl Data {
+    /// A workspace sized for `model`.
+    pub fn new(model: &Model) -> Data {
+        let n = model.nq();
+        Data {
+            rotation: vec![Mat3::identity(); n + 1],
+            origin: vec![Vec3::zeros(); n + 1],
+            joint_rotation: vec![Mat3::identity(); n],
+            joint_origin: vec![Vec3::zeros(); n],
+            omega: vec![Vec3::zeros(); n + 1],
+            omega_dot: vec![Vec3::zeros(); n + 1],
+            velocity: vec![Vec3::zeros(); n + 1],
+            acceleration: vec![Vec3::zeros(); n + 1],
+            com_velocity: vec![Vec3::zeros(); n],
+            force: vec![Vec3::zeros(); n],
+            moment: vec![Vec3::zeros(); n],
+            tau: vec![0.0; n],
+            composite: vec![Mat6::zeros(); n],
+            mass_matrix: MatN::zeros(n, n),
+            reaction_force: vec![Vec3::zeros(); n],
+            reaction_moment: vec![Vec3::zeros(); n],
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! The errors of the engine: one enum for models, one for stepping.
+
+/// A model that cannot be built: each variant names the field and the reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// The model file could not be read.
+    #[error("cannot read model file `{path}`: {reason}")]
+    Io {
+        /// The path as given.
+        path: String,
+        /// What the operating system said.
+        reason: String,
+    },
+    /// The file is not valid TOML or does not have the expected structure
+    /// (unknown key, wrong type, missing field, unknown joint type …).
+    #[error("model file is malformed: {reason}")]
+    Syntax {
+        /// The parser's message, with line and column where known.
+        reason: String,
+    },
+    /// A numeric parameter is out of its range.
+    #[error("`{field}` = {value}: {reason}")]
+    InvalidParameter {
+        /// The field, e.g. `joint[3].drive.k`.
+        field: String,
+        /// The rejected value.
+        value: f64,
+        /// Why it is rejected.
+        reason: String,
+    },
+    /// A structural problem that is not one number (missing geometry, chain
+    /// length, …).
+    #[error("`{field}`: {reason}")]
+    Invalid {
+        /// The field or section concerned.
+        field: String,
+        /// Why it is rejected.
+        reason: String,
+    },
+}
+
+/// A communication interval the engine could not complete. The state is left
+/// as it was at the start of the interval.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// An input vector has the wrong length.
+    #[error("input `{field}` has {got} values, the model has {expected} joints")]
+    InputLength {
+        /// Which input.
+        field: &'static str,
+        /// Number of joints of the model.
+        expected: usize,
+        /// Number of values given.
+        got: usize,
+    },
+    /// An input is NaN or infinite.
+    #[error("input `{field}[{joint}]` is not finite ({value})")]
+    NonFiniteInput {
+        /// Which input (`q_star`, `qd_star`, `qdd_star`).
+        field: &'static str,
+        /// Joint number, 1-based.
+        joint: usize,
+        /// The rejected value.
+        value: f64,
+    },
+    /// The interval length is not a positive finite number.
+    #[error("communication interval {interval} s is not positive and finite")]
+    InvalidInterval {
+        /// The rejected interval, s.
+        interval: f64,
+    },
+    /// The Newmark iteration did not converge within its iteration limit.
+    #[error("Newmark iteration did not converge at t = {time} s after {iterations} iterations (residual {residual:e})")]
+    NotConverged {
+        /// Time of the failed sub-step, s.
+        time: f64,
+        /// Iterations done.
+        iterations: usize,
+        /// Last relative change of the accelerations.
+        residual: f64,
+    },
+    /// The mass matrix of the slipping joints is not positive definite.
+    #[error("mass matrix of the slipping joints is not positive definite at t = {time} s")]
+    SingularMassMatrix {
+        /// Time of the failed sub-step, s.
+        time: f64,
+    },
+    /// The state became NaN or infinite.
+    #[error("state is not finite at t = {time} s")]
+    NonFiniteState {
+        /// Time of the failed sub-step, s.
+        time: f64,
+    },
+    /// The simulation was advanced before it was initialized.
+    #[error("the simulation is not initialized")]
+    NotInitialized,
+    /// A parameter change left the model inconsistent.
+    #[error("model is not valid: {reason}")]
+    InvalidModel {
+        /// What is wrong, naming the parameter.
+        reason: String,
+    },
+}

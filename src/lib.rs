@@ -1,0 +1,16 @@
+#![doc = include_str!("../README.md")]
+#![warn(missing_docs)]
+
+pub mod algorithms;
+pub mod data;
+pub mod error;
+pub mod forces;
+pub mod math;
+pub mod model;
+pub mod motion;
+pub mod stepper;
+
+pub use data::Data;
+pub use error::{ModelError, StepError};
+pub use model::Model;
+pub use stepper::{DriveInputs, Energy, InitialState, Phase, Simulator, State};

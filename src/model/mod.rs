@@ -1,0 +1,13 @@
+//! The manipulator model: chain, drives, friction, and its model file.
+
+mod file;
+mod joint;
+mod link;
+mod manipulator;
+mod parameter;
+
+pub use file::REFERENCE_RRPR_TOML;
+pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};
+pub use link::Link;
+pub use manipulator::{IntegratorSettings, Model, MAX_JOINTS};
+pub use parameter::Parameter;

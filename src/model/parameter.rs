@@ -1,0 +1,152 @@
+//! Checked access to the tunable parameters of a model.
+
+use super::manipulator::{check_value, Range};
+use super::{ContactGeometry, Drive, Model};
+use crate::error::ModelError;
+
+/// A scalar parameter of one joint (or of the link it moves) that may be
+/// changed between communication steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Parameter {
+    /// Drive stiffness k, flexible drives only.
+    Stiffness,
+    /// Drive damping h, flexible drives only.
+    Damping,
+    /// Drive clearance Δ, flexible drives only.
+    Clearance,
+    /// Kinetic friction coefficient μ_k.
+    MuKinetic,
+    /// Static friction coefficient μ_s.
+    MuStatic,
+    /// Stribeck velocity v_s.
+    StribeckVelocity,
+    /// Slider length a (prismatic joints).
+    SliderA,
+    /// Slider cross-section b (prismatic joints).
+    SliderB,
+    /// Slider cross-section c (prismatic joints).
+    SliderC,
+    /// Diameter of radial bearing A (revolute joints).
+    DiameterA,
+    /// Diameter of radial bearing B (revolute joints).
+    DiameterB,
+    /// Diameter of thrust bearing C (revolute joints).
+    DiameterC,
+    /// Distance l_A of bearing A from the reaction point (revolute joints).
+    LengthA,
+    /// Distance l_B of bearing B from the reaction point (revolute joints).
+    LengthB,
+    /// Mass of the link moved by the joint.
+    Mass,
+}
+
+impl Parameter {
+    /// Every parameter, in a fixed order.
+    pub const ALL: [Parameter; 15] = [
+        Parameter::Stiffness,
+        Parameter::Damping,
+        Parameter::Clearance,
+        Parameter::MuKinetic,
+        Parameter::MuStatic,
+        Parameter::StribeckVelocity,
+        Parameter::SliderA,
+        Parameter::SliderB,
+        Parameter::SliderC,
+        Parameter::DiameterA,
+        Parameter::DiameterB,
+        Parameter::DiameterC,
+        Parameter::LengthA,
+        Parameter::LengthB,
+        Parameter::Mass,
+    ];
+
+    /// The short name used in model files and FMU variable names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Parameter::Stiffness => "k",
+            Parameter::Damping => "h",
+            Parameter::Clearance => "Delta",
+            Parameter::MuKinetic => "mu_k",
+            Parameter::MuStatic => "mu_s",
+            Parameter::StribeckVelocity => "v_s",
+            Parameter::SliderA => "slider_a",
+            Parameter::SliderB => "slider_b",
+            Parameter::SliderC => "slider_c",
+            Parameter::DiameterA => "d_A",
+            Parameter::DiameterB => "d_B",
+            Parameter::DiameterC => "d_C",
+            Parameter::LengthA => "l_A",
+            Parameter::LengthB => "l_B",
+            Parameter::Mass => "m",
+        }
+    }
+
+    fn range(self) -> Range {
+        match self {
+            Parameter::Stiffness | Parameter::SliderA | Parameter::Mass => Range::Positive,
+            _ => Range::NonNegative,
+        }
+    }
+}
+
+impl Model {
+    /// A mutable reference to the storage of `p` of joint `joint` (0-based),
+    /// or `None` if the joint does not have this parameter (a rigid drive has
+    /// no stiffness, a revolute joint no slider …).
+    fn parameter_slot(&mut self, p: Parameter, joint: usize) -> Option<&mut f64> {
+        let link = self.links.get_mut(joint)?;
+        let j = self.joints.get_mut(joint)?;
+        if p == Parameter::Mass {
+            return Some(&mut link.mass);
+        }
+        if let Drive::Flexible { stiffness, damping, clearance } = &mut j.drive {
+            match p {
+                Parameter::Stiffness => return Some(stiffness),
+                Parameter::Damping => return Some(damping),
+                Parameter::Clearance => return Some(clearance),
+                _ => {}
+            }
+        }
+        let friction = j.friction.as_mut()?;
+        let c = &mut friction.coefficients;
+        match (p, &mut friction.geometry) {
+            (Parameter::MuKinetic, _) => Some(&mut c.mu_kinetic),
+            (Parameter::MuStatic, _) => Some(&mut c.mu_static),
+            (Parameter::StribeckVelocity, _) => Some(&mut c.stribeck_velocity),
+            (Parameter::SliderA, ContactGeometry::Slider { a, .. }) => Some(a),
+            (Parameter::SliderB, ContactGeometry::Slider { b, .. }) => Some(b),
+            (Parameter::SliderC, ContactGeometry::Slider { c, .. }) => Some(c),
+            (Parameter::DiameterA, ContactGeometry::Bearings { d_a, .. }) => Some(d_a),
+            (Parameter::DiameterB, ContactGeometry::Bearings { d_b, .. }) => Some(d_b),
+            (Parameter::DiameterC, ContactGeometry::Bearings { d_c, .. }) => Some(d_c),
+            (Parameter::LengthA, ContactGeometry::Bearings { l_a, .. }) => Some(l_a),
+            (Parameter::LengthB, ContactGeometry::Bearings { l_b, .. }) => Some(l_b),
+            _ => None,
+        }
+    }
+
+    /// True if joint `joint` (0-based) has parameter `p`.
+    pub fn has_parameter(&self, p: Parameter, joint: usize) -> bool {
+        self.parameter(p, joint).is_some()
+    }
+
+    /// Value of parameter `p` of joint `joint` (0-based), if it has one.
+    pub fn parameter(&self, p: Parameter, joint: usize) -> Option<f64> {
+        self.clone().parameter_slot(p, joint).map(|v| *v)
+    }
+
+    /// Sets parameter `p` of joint `joint` (0-based) after checking the value's
+    /// own range. Relations between parameters (μ_s ≥ μ_k, …) are checked by
+    /// [`Model::validate`], since a caller sets them one at a time.
+    pub fn set_parameter(&mut self, p: Parameter, joint: usize, value: f64) -> Result<(), ModelError> {
+        let field = format!("{}[{}]", p.name(), joint + 1);
+        check_value(&field, value, p.range())?;
+        match self.parameter_slot(p, joint) {
+            Some(slot) => {
+                *slot = value;
+                Ok(())
+            }
+            None => Err(ModelError::Invalid { field, reason: "this joint has no such parameter".into() }),
+        }
+    }
+}

@@ -1,0 +1,52 @@
+//! Drive inputs and their Taylor polynomial across a communication interval.
+
+/// Drive inputs at the start of a communication interval. For a flexible
+/// joint they are the drive end q*, q̇*, q̈*; for a rigid joint the prescribed
+/// q, q̇, q̈. Each slice has one value per joint.
+#[derive(Debug, Clone, Copy)]
+pub struct DriveInputs<'a> {
+    /// q*, m or rad.
+    pub q_star: &'a [f64],
+    /// q̇*, m/s or rad/s.
+    pub qd_star: &'a [f64],
+    /// q̈*, m/s² or rad/s².
+    pub qdd_star: &'a [f64],
+}
+
+/// The inputs held across an interval as their second-order Taylor
+/// polynomial about its start t0, so that a drive end moves smoothly instead
+/// of jumping (a step of q* would hammer a 10⁶ N/m spring).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputPolynomial {
+    /// Start of the interval, s.
+    pub t0: f64,
+    /// q*(t0).
+    pub q: Vec<f64>,
+    /// q̇*(t0).
+    pub qd: Vec<f64>,
+    /// q̈*(t0).
+    pub qdd: Vec<f64>,
+}
+
+impl InputPolynomial {
+    /// A polynomial for `n` joints, all zero.
+    pub fn new(n: usize) -> Self {
+        InputPolynomial { t0: 0.0, q: vec![0.0; n], qd: vec![0.0; n], qdd: vec![0.0; n] }
+    }
+
+    /// Takes new inputs at `t0`, without allocating.
+    pub fn set(&mut self, t0: f64, inputs: &DriveInputs) {
+        self.t0 = t0;
+        self.q.copy_from_slice(inputs.q_star);
+        self.qd.copy_from_slice(inputs.qd_star);
+        self.qdd.copy_from_slice(inputs.qdd_star);
+    }
+
+    /// (q*, q̇*, q̈*) of joint `i` at time `t`.
+    #[inline]
+    pub fn eval(&self, i: usize, t: f64) -> (f64, f64, f64) {
+        let tau = t - self.t0;
+        let a = self.qdd[i];
+        (self.q[i] + tau * (self.qd[i] + 0.5 * tau * a), self.qd[i] + tau * a, a)
+    }
+}

@@ -1,0 +1,204 @@
+//! One sub-step of the iterative Newmark method: accelerations, joint
+//! reactions and friction forces made mutually consistent.
+
+use super::simulator::Simulator;
+use super::state::Phase;
+use crate::algorithms::kinematics::forward_kinematics;
+use crate::algorithms::rnea::{joint_reactions, rnea};
+use crate::algorithms::{cholesky, crba::crba};
+use crate::error::StepError;
+use crate::forces::drive::drive_force;
+use crate::forces::friction::contact_load;
+use crate::model::{Drive, Joint};
+
+/// True if the joint has static friction that can hold it.
+pub(crate) fn holds_statically(joint: &Joint) -> bool {
+    joint.friction.is_some_and(|f| f.coefficients.mu_static > 0.0)
+}
+
+impl Simulator {
+    /// Solves the state at the current time with the current phases, without
+    /// advancing (a zero-length sub-step): used at initialization, at the start
+    /// of an interval and after a phase change.
+    pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
+        self.start.clone_from(&self.state);
+        self.prepare_iteration_matrix();
+        self.solve(self.state.time)
+    }
+
+    /// Mass matrix at the configuration of the sub-step start: the iteration
+    /// matrix of every Newmark iteration of this sub-step is built from it.
+    pub(crate) fn prepare_iteration_matrix(&mut self) {
+        forward_kinematics(&self.model, &mut self.data, &self.start.q);
+        crba(&self.model, &mut self.data);
+    }
+
+    /// Solves the sub-step from `self.start` to time `t` with the phases in
+    /// `self.state`; the result lands in `self.state` (q, q̇, q̈, forces,
+    /// reactions, margins) and in the workspace.
+    ///
+    /// Newmark: q₁ = q₀ + h·q̇₀ + h²·((½ − β)·q̈₀ + β·q̈₁), q̇₁ = q̇₀ + h·((1 − γ)·q̈₀ + γ·q̈₁).
+    /// The unknowns q̈₁ of the slipping joints are corrected with the
+    /// iteration matrix M_ff + γh·H + βh²·K until the residual of (3.9),
+    /// F^d − F^f − (M q̈ + bias), is below the tolerance relative to the
+    /// joint's force scale: then accelerations, reactions and friction agree.
+    pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
+        let n = self.model.nq();
+        let h = t - self.start.time;
+        let settings = self.model.integrator;
+        let (beta, gamma) = (settings.beta, settings.gamma);
+        self.state.time = t;
+        self.free.clear();
+        for i in 0..n {
+            let (qs, qds, qdds) = self.inputs.eval(i, t);
+            let st = &mut self.state;
+            st.q_star[i] = qs;
+            st.qd_star[i] = qds;
+            match st.phase[i] {
+                Phase::Prescribed => {
+                    st.q[i] = qs;
+                    st.qd[i] = qds;
+                    st.qdd[i] = qdds;
+                }
+                Phase::Stuck => {
+                    st.q[i] = self.start.q[i];
+                    st.qd[i] = 0.0;
+                    st.qdd[i] = 0.0;
+                }
+                Phase::Slipping(_) => {
+                    self.free.push(i);
+                    st.qdd[i] = self.start.qdd[i];
+                }
+            }
+        }
+        let nf = self.free.len();
+        if nf > 0 {
+            self.factor_iteration_matrix(h, beta, gamma)?;
+        }
+        for iteration in 1..=settings.max_iterations {
+            for &i in &self.free {
+                let (s, st) = (&self.start, &mut self.state);
+                st.q[i] = s.q[i] + h * s.qd[i] + h * h * ((0.5 - beta) * s.qdd[i] + beta * st.qdd[i]);
+                st.qd[i] = s.qd[i] + h * ((1.0 - gamma) * s.qdd[i] + gamma * st.qdd[i]);
+            }
+            forward_kinematics(&self.model, &mut self.data, &self.state.q);
+            rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
+            joint_reactions(&self.model, &mut self.data);
+            let residual = self.joint_forces();
+            self.iterations += 1;
+            if !residual.is_finite() {
+                return Err(StepError::NonFiniteState { time: t });
+            }
+            if residual <= settings.tolerance {
+                return Ok(());
+            }
+            if iteration == settings.max_iterations {
+                return Err(StepError::NotConverged { time: t, iterations: iteration, residual });
+            }
+            cholesky::solve(&self.iteration_matrix, nf, &mut self.correction[..nf]);
+            for (k, &i) in self.free.iter().enumerate() {
+                self.state.qdd[i] += self.correction[k];
+            }
+        }
+        unreachable!("the loop returns on its last iteration")
+    }
+
+    /// Builds and factors M_ff + γh·H_f + βh²·K_f for the free joints.
+    fn factor_iteration_matrix(&mut self, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
+        let nf = self.free.len();
+        for (a, &i) in self.free.iter().enumerate() {
+            for (b, &j) in self.free.iter().enumerate() {
+                self.iteration_matrix[a * nf + b] = self.data.mass_matrix[(i, j)];
+            }
+            if let Drive::Flexible { stiffness, damping, clearance } = self.model.joints[i].drive {
+                if (self.start.q_star[i] - self.start.q[i]).abs() >= clearance {
+                    self.iteration_matrix[a * nf + a] += gamma * h * damping + beta * h * h * stiffness;
+                }
+            }
+        }
+        if cholesky::factor(&mut self.iteration_matrix[..nf * nf], nf) {
+            Ok(())
+        } else {
+            Err(StepError::SingularMassMatrix { time: self.start.time + h })
+        }
+    }
+
+    /// Drive forces (2.1), contact loads and friction (3.11)–(3.15), phase
+    /// margins (3.16) of every joint from the reactions in the workspace;
+    /// fills the residuals of the free joints into `self.correction` and
+    /// returns the largest one relative to its joint's force scale.
+    fn joint_forces(&mut self) -> f64 {
+        let (model, data, st) = (&self.model, &self.data, &mut self.state);
+        let mut worst: f64 = 0.0;
+        let mut k = 0;
+        for (i, joint) in model.joints.iter().enumerate() {
+            let tau = data.tau[i];
+            let load = joint.friction.map(|f| contact_load(&f.geometry, &data.reaction_force[i], &data.reaction_moment[i]));
+            let (normal, lever) = load.map_or((0.0, 0.0), |l| (l.normal, l.lever_load));
+            st.normal_load[i] = normal;
+            st.lever_load[i] = lever;
+            let coefficients = joint.friction.map(|f| f.coefficients);
+            match joint.drive {
+                Drive::Rigid => {
+                    // A rigid drive supplies the generalized force plus the friction it overcomes.
+                    let friction = coefficients.map_or(0.0, |c| c.kinetic(st.qd[i]) * lever * sign(st.qd[i]));
+                    st.friction_force[i] = friction;
+                    st.drive_force[i] = tau + friction;
+                    st.damping_force[i] = 0.0;
+                    st.margin[i] = f64::INFINITY;
+                }
+                Drive::Flexible { stiffness, damping, clearance } => {
+                    let fd = drive_force(stiffness, damping, clearance, st.q_star[i], st.qd_star[i], st.q[i], st.qd[i]);
+                    st.drive_force[i] = fd;
+                    st.damping_force[i] = if (st.q_star[i] - st.q[i]).abs() < clearance {
+                        0.0
+                    } else {
+                        damping * (st.qd_star[i] - st.qd[i])
+                    };
+                    let static_limit = coefficients.map_or(0.0, |c| c.mu_static) * lever;
+                    match st.phase[i] {
+                        Phase::Stuck => {
+                            // (3.16)–(3.18): F* = τ is the axial reaction with the joint held.
+                            st.friction_force[i] = fd - tau;
+                            st.margin[i] = static_limit - (fd - tau).abs();
+                        }
+                        Phase::Slipping(d) => {
+                            let d = d as f64;
+                            let friction = coefficients.map_or(0.0, |c| c.kinetic(st.qd[i])) * lever * d;
+                            st.friction_force[i] = friction;
+                            st.margin[i] = if holds_statically(joint) { d * st.qd[i] } else { f64::INFINITY };
+                            // (3.9), (3.10): Σ D_si q̈_i + bias = F^d − F^f.
+                            let residual = fd - friction - tau;
+                            let scale = fd.abs() + friction.abs() + tau.abs() + joint_load_scale(data, joint, i);
+                            worst = worst.max(residual.abs() / scale.max(f64::MIN_POSITIVE));
+                            self.correction[k] = residual;
+                            k += 1;
+                        }
+                        Phase::Prescribed => unreachable!("a flexible joint is never prescribed"),
+                    }
+                }
+            }
+        }
+        worst
+    }
+}
+
+/// Size of the reaction a joint carries, as a floor for relative residuals:
+/// the force for a prismatic joint, the moment for a revolute one.
+fn joint_load_scale(data: &crate::data::Data, joint: &Joint, i: usize) -> f64 {
+    match joint.kind {
+        crate::model::JointKind::Prismatic => data.force[i].norm(),
+        crate::model::JointKind::Revolute => data.moment[i].norm(),
+    }
+}
+
+#[inline]
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}

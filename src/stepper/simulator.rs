@@ -1,0 +1,313 @@
+//! The simulator: a model, its workspace and its state, advanced over
+//! communication intervals by the iterative Newmark stepper.
+
+use super::inputs::{DriveInputs, InputPolynomial};
+use super::state::{Phase, State};
+use crate::algorithms::energy::{kinetic_energy, potential_energy};
+use crate::algorithms::kinematics::{end_point, forward_kinematics};
+use crate::data::Data;
+use crate::error::{ModelError, StepError};
+use crate::forces::drive::spring_energy;
+use crate::model::{Drive, Model, Parameter};
+
+/// A phase change of one joint, for event logs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    /// Time of the change, s.
+    pub time: f64,
+    /// Joint number, 0-based.
+    pub joint: usize,
+    /// Phase before.
+    pub from: Phase,
+    /// Phase after.
+    pub to: Phase,
+}
+
+/// How many transitions are kept between two calls of
+/// [`Simulator::clear_transitions`]; later ones are only counted.
+pub const TRANSITION_LOG_CAPACITY: usize = 256;
+
+/// Start values that override the default initial state (q = q*, at rest).
+#[derive(Debug, Clone, Copy)]
+pub struct InitialState<'a> {
+    /// Joint coordinates of the flexible joints (values of rigid joints are ignored).
+    pub q: &'a [f64],
+    /// Joint velocities of the flexible joints (values of rigid joints are ignored).
+    pub qd: &'a [f64],
+}
+
+/// Forward dynamics of one manipulator: owns the model, the workspace and the
+/// state. Every method that advances time either succeeds or leaves the state
+/// as it was.
+#[derive(Debug, Clone)]
+pub struct Simulator {
+    pub(crate) model: Model,
+    pub(crate) model_checked: bool,
+    pub(crate) data: Data,
+    pub(crate) state: State,
+    /// Snapshot at the start of the current sub-step.
+    pub(crate) start: State,
+    /// Snapshot at the start of the current interval, restored on error.
+    pub(crate) saved: State,
+    pub(crate) inputs: InputPolynomial,
+    /// Indices of the joints with an equation of motion in this sub-step.
+    pub(crate) free: Vec<usize>,
+    /// Newmark iteration matrix of the free joints, row-major, factored in place.
+    pub(crate) iteration_matrix: Vec<f64>,
+    /// Residuals, then corrections, of the free joints.
+    pub(crate) correction: Vec<f64>,
+    /// Scratch joint vector.
+    pub(crate) scratch: Vec<f64>,
+    /// Joints whose phase was decided at the current instant.
+    pub(crate) decided: Vec<bool>,
+    pub(crate) transitions: Vec<Transition>,
+    pub(crate) transitions_dropped: usize,
+    /// Newmark iterations of the last interval, for diagnostics.
+    pub(crate) iterations: u64,
+    pub(crate) initialized: bool,
+}
+
+impl Simulator {
+    /// A simulator for `model` (validated), not yet initialized.
+    pub fn new(model: Model) -> Result<Simulator, ModelError> {
+        model.validate()?;
+        let n = model.nq();
+        let state = State::new(&model);
+        Ok(Simulator {
+            data: Data::new(&model),
+            start: state.clone(),
+            saved: state.clone(),
+            state,
+            inputs: InputPolynomial::new(n),
+            free: Vec::with_capacity(n),
+            iteration_matrix: vec![0.0; n * n],
+            correction: vec![0.0; n],
+            scratch: vec![0.0; n],
+            decided: vec![false; n],
+            transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
+            transitions_dropped: 0,
+            iterations: 0,
+            initialized: false,
+            model_checked: true,
+            model,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// The workspace (reactions, mass matrix … of the last evaluation).
+    pub fn data(&self) -> &Data {
+        &self.data
+    }
+
+    /// Newmark iterations spent in the last interval.
+    pub fn iterations(&self) -> u64 {
+        self.iterations
+    }
+
+    /// Restores a state taken from [`Simulator::state`] of a simulator of the
+    /// same model.
+    pub fn set_state(&mut self, state: &State) -> Result<(), ModelError> {
+        if !state.fits(&self.model) {
+            return Err(ModelError::Invalid { field: "state".into(), reason: "does not fit this model".into() });
+        }
+        self.state.clone_from(state);
+        self.initialized = true;
+        Ok(())
+    }
+
+    /// Sets a tunable parameter (0-based joint). Relations between parameters
+    /// are checked before the next interval.
+    pub fn set_parameter(&mut self, p: Parameter, joint: usize, value: f64) -> Result<(), ModelError> {
+        self.model.set_parameter(p, joint, value)?;
+        self.model_checked = false;
+        Ok(())
+    }
+
+    /// Phase transitions since the last [`Simulator::clear_transitions`], and
+    /// how many more were not kept.
+    pub fn transitions(&self) -> (&[Transition], usize) {
+        (&self.transitions, self.transitions_dropped)
+    }
+
+    /// Forgets the logged transitions.
+    pub fn clear_transitions(&mut self) {
+        self.transitions.clear();
+        self.transitions_dropped = 0;
+    }
+
+    fn check_model(&mut self) -> Result<(), StepError> {
+        if !self.model_checked {
+            self.model.validate().map_err(|e| StepError::InvalidModel { reason: e.to_string() })?;
+            self.model_checked = true;
+        }
+        Ok(())
+    }
+
+    fn check_inputs(&self, inputs: &DriveInputs) -> Result<(), StepError> {
+        let n = self.model.nq();
+        for (field, values) in [("q_star", inputs.q_star), ("qd_star", inputs.qd_star), ("qdd_star", inputs.qdd_star)] {
+            if values.len() != n {
+                return Err(StepError::InputLength { field, expected: n, got: values.len() });
+            }
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
+            }
+        }
+        Ok(())
+    }
+
+    /// Starts a simulation at time `t0` with the drive inputs at t0. Flexible
+    /// joints start at q = q*, at rest and stuck (when they have friction)
+    /// unless `initial` gives other start values.
+    pub fn initialize(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
+        self.check_model()?;
+        self.check_inputs(inputs)?;
+        if !t0.is_finite() {
+            return Err(StepError::InvalidInterval { interval: t0 });
+        }
+        if let Some(init) = initial {
+            let n = self.model.nq();
+            for (field, v) in [("q_start", init.q), ("qd_start", init.qd)] {
+                if v.len() != n {
+                    return Err(StepError::InputLength { field, expected: n, got: v.len() });
+                }
+                if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                    return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *x });
+                }
+            }
+        }
+        let previous = self.state.clone();
+        let result = self.initialize_inner(t0, inputs, initial);
+        if result.is_err() {
+            self.state = previous;
+        }
+        result
+    }
+
+    fn initialize_inner(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
+        self.inputs.set(t0, inputs);
+        let st = &mut self.state;
+        st.time = t0;
+        st.energy = Default::default();
+        for (i, joint) in self.model.joints.iter().enumerate() {
+            match joint.drive {
+                Drive::Rigid => {
+                    st.phase[i] = Phase::Prescribed;
+                    st.q[i] = inputs.q_star[i];
+                    st.qd[i] = inputs.qd_star[i];
+                }
+                Drive::Flexible { .. } => {
+                    let (q, qd) = initial.map_or((inputs.q_star[i], 0.0), |s| (s.q[i], s.qd[i]));
+                    st.q[i] = q;
+                    st.qd[i] = qd;
+                    st.phase[i] = if qd != 0.0 {
+                        Phase::Slipping(if qd > 0.0 { 1 } else { -1 })
+                    } else if super::newmark::holds_statically(joint) {
+                        Phase::Stuck
+                    } else {
+                        Phase::Slipping(1)
+                    };
+                }
+            }
+            st.qdd[i] = 0.0;
+        }
+        self.clear_transitions();
+        self.evaluate()?;
+        self.settle_phases()?;
+        self.update_reported();
+        self.initialized = true;
+        Ok(())
+    }
+
+    /// Advances the state over one communication interval of length
+    /// `interval` (s) with the drive inputs at its start, held as their Taylor
+    /// polynomial. The interval is covered by ceil(interval / h_max) equal
+    /// sub-steps, each shortened where a joint sticks or slips so that the
+    /// transition falls on a sub-step boundary. On error the state is left as
+    /// it was.
+    pub fn advance(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
+        if !(interval.is_finite() && interval > 0.0) {
+            return Err(StepError::InvalidInterval { interval });
+        }
+        self.check_inputs(inputs)?;
+        if !self.initialized {
+            return Err(StepError::NotInitialized);
+        }
+        self.check_model()?;
+        self.saved.clone_from(&self.state);
+        self.iterations = 0;
+        let result = self.advance_inner(inputs, interval);
+        if result.is_err() {
+            self.state.clone_from(&self.saved);
+        }
+        result
+    }
+
+    fn advance_inner(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
+        let t0 = self.state.time;
+        self.inputs.set(t0, inputs);
+        // Inputs may differ from the previous interval's extrapolation: make
+        // accelerations and phases consistent with them before stepping.
+        self.evaluate()?;
+        self.settle_phases()?;
+        let h_max = self.model.integrator.h_max;
+        let steps = (interval / h_max).ceil().max(1.0);
+        let h = interval / steps;
+        let steps = steps as u64;
+        for k in 1..=steps {
+            let t_grid = if k == steps { t0 + interval } else { t0 + k as f64 * h };
+            // An event shortens a sub-step; the rest of it up to the grid
+            // point is taken next.
+            while t_grid - self.state.time > 1e-9 * h {
+                self.substep(t_grid)?;
+            }
+            self.state.time = t_grid;
+        }
+        self.update_reported();
+        Ok(())
+    }
+
+    /// Recomputes the reported quantities that are not needed while stepping:
+    /// energies and end points.
+    pub(crate) fn update_reported(&mut self) {
+        let model = &self.model;
+        let st = &mut self.state;
+        // The workspace holds the kinematics and velocities of the current state.
+        st.energy.kinetic = kinetic_energy(model, &self.data);
+        st.energy.potential = potential_energy(model, &self.data);
+        st.energy.spring = model
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(i, j)| match j.drive {
+                Drive::Flexible { stiffness, clearance, .. } => spring_energy(stiffness, clearance, st.q_star[i], st.q[i]),
+                Drive::Rigid => 0.0,
+            })
+            .sum();
+        st.end_point = end_point(model, &self.data);
+        // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
+        self.scratch.copy_from_slice(&st.q_star);
+        forward_kinematics(model, &mut self.data, &self.scratch);
+        st.end_point_rigid = end_point(model, &self.data);
+    }
+
+    pub(crate) fn log_transition(&mut self, joint: usize, from: Phase, to: Phase) {
+        if from == to {
+            return;
+        }
+        if self.transitions.len() < TRANSITION_LOG_CAPACITY {
+            self.transitions.push(Transition { time: self.state.time, joint, from, to });
+        } else {
+            self.transitions_dropped += 1;
+        }
+    }
+}

@@ -1,0 +1,179 @@
+//! The state of a simulation: what evolves in time and what is reported.
+
+use crate::math::Vec3;
+use crate::model::{Drive, Model};
+
+/// Phase of a joint (study section 3.2, eqs. 3.16–3.18).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Rigid drive: q, q̇, q̈ are kinematic inputs.
+    Prescribed,
+    /// Stiction phase: the joint stands still, held by static friction; its
+    /// equation is removed from the system.
+    Stuck,
+    /// Kinetic friction phase in direction +1 or −1; the joint has an equation
+    /// of motion (3.9) and friction opposes this direction.
+    Slipping(i8),
+}
+
+impl Phase {
+    /// True while the joint has an equation of motion.
+    #[inline]
+    pub fn is_free(self) -> bool {
+        matches!(self, Phase::Slipping(_))
+    }
+}
+
+/// Everything that evolves, plus the reported quantities at the current time.
+/// Restoring a `State` restores the exact continuation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// Time, s.
+    pub time: f64,
+    /// Joint coordinates q, m or rad.
+    pub q: Vec<f64>,
+    /// Joint velocities q̇.
+    pub qd: Vec<f64>,
+    /// Joint accelerations q̈.
+    pub qdd: Vec<f64>,
+    /// Phase of every joint.
+    pub phase: Vec<Phase>,
+    /// Drive input q* at the current time (prescribed q for rigid joints).
+    pub q_star: Vec<f64>,
+    /// Drive input rate q̇* at the current time.
+    pub qd_star: Vec<f64>,
+    /// Drive force F^d (2.1); for a rigid joint the force the drive supplies.
+    pub drive_force: Vec<f64>,
+    /// Damping part h·δ·(q̇* − q̇) of the drive force.
+    pub damping_force: Vec<f64>,
+    /// Friction force F^f, signed so that F^d − F^f is the generalized force
+    /// (3.10); while stuck, the friction that holds the joint.
+    pub friction_force: Vec<f64>,
+    /// Normal load of the joint's contact, N.
+    pub normal_load: Vec<f64>,
+    /// Friction per unit coefficient (μ·`lever_load` = friction).
+    pub lever_load: Vec<f64>,
+    /// Distance to the next phase change: d·q̇ while slipping in direction d,
+    /// the static reserve μ_s·L − |F^d − F*| while stuck (3.16), +∞ otherwise.
+    pub margin: Vec<f64>,
+    /// Joint force at the reaction reference point, joint frame, N.
+    pub reaction_force: Vec<Vec3>,
+    /// Joint moment about the reaction reference point, joint frame, N·m.
+    pub reaction_moment: Vec<Vec3>,
+    /// Energy account.
+    pub energy: Energy,
+    /// End point E of the flexible manipulator in frame 0, m.
+    pub end_point: Vec3,
+    /// End point of the same manipulator with rigid drives (q = q*), m.
+    pub end_point_rigid: Vec3,
+}
+
+/// Energies and works, J.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Energy {
+    /// Kinetic energy of the links.
+    pub kinetic: f64,
+    /// Potential energy of gravity (zero at the origin of frame 0).
+    pub potential: f64,
+    /// Elastic energy of the drive springs.
+    pub spring: f64,
+    /// Work done by the drives since initialization (flexible drive ends and
+    /// rigid drives).
+    pub drive_work: f64,
+    /// Heat produced by joint friction since initialization.
+    pub friction_heat: f64,
+    /// Heat produced by drive damping since initialization.
+    pub damping_heat: f64,
+}
+
+impl Energy {
+    /// Kinetic + gravity + spring energy.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.potential + self.spring
+    }
+
+    /// E − (W_drive − Q_friction − Q_damping): constant in time when the
+    /// account closes.
+    pub fn balance(&self) -> f64 {
+        self.total() - self.drive_work + self.friction_heat + self.damping_heat
+    }
+}
+
+impl State {
+    /// A state sized for `model`, at rest at q = 0.
+    pub fn new(model: &Model) -> State {
+        let n = model.nq();
+        let phase = model
+            .joints
+            .iter()
+            .map(|j| if j.drive.is_flexible() { Phase::Stuck } else { Phase::Prescribed })
+            .collect();
+        State {
+            time: 0.0,
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+            phase,
+            q_star: vec![0.0; n],
+            qd_star: vec![0.0; n],
+            drive_force: vec![0.0; n],
+            damping_force: vec![0.0; n],
+            friction_force: vec![0.0; n],
+            normal_load: vec![0.0; n],
+            lever_load: vec![0.0; n],
+            margin: vec![f64::INFINITY; n],
+            reaction_force: vec![Vec3::zeros(); n],
+            reaction_moment: vec![Vec3::zeros(); n],
+            energy: Energy::default(),
+            end_point: Vec3::zeros(),
+            end_point_rigid: Vec3::zeros(),
+        }
+    }
+
+    /// Number of joints.
+    pub fn nq(&self) -> usize {
+        self.q.len()
+    }
+
+    /// True if joint `i` (0-based) is in its stiction phase.
+    pub fn is_stuck(&self, i: usize) -> bool {
+        self.phase[i] == Phase::Stuck
+    }
+
+    /// ε_i = q*_i − q_i, the lag of joint `i` (0-based) behind its drive.
+    pub fn joint_error(&self, i: usize) -> f64 {
+        self.q_star[i] - self.q[i]
+    }
+
+    /// ε = |x_E(q) − x_E(q̂)| (study eq. 4.1), m.
+    pub fn end_point_error(&self) -> f64 {
+        (self.end_point - self.end_point_rigid).norm()
+    }
+
+    /// True if the state fits `model` (sizes, and phases that agree with the
+    /// drives).
+    pub fn fits(&self, model: &Model) -> bool {
+        let n = model.nq();
+        let sizes = [
+            self.q.len(),
+            self.qd.len(),
+            self.qdd.len(),
+            self.phase.len(),
+            self.q_star.len(),
+            self.qd_star.len(),
+            self.drive_force.len(),
+            self.damping_force.len(),
+            self.friction_force.len(),
+            self.normal_load.len(),
+            self.lever_load.len(),
+            self.margin.len(),
+            self.reaction_force.len(),
+            self.reaction_moment.len(),
+        ];
+        sizes.iter().all(|&s| s == n)
+            && model.joints.iter().zip(&self.phase).all(|(j, p)| match j.drive {
+                Drive::Rigid => *p == Phase::Prescribed,
+                Drive::Flexible { .. } => *p != Phase::Prescribed,
+            })
+    }
+}

@@ -1,0 +1,155 @@
+//! Stick–slip switching (study eqs. 3.16–3.18) with the transition located
+//! inside the sub-step, and the energy account of accepted sub-steps.
+
+use super::simulator::Simulator;
+use super::state::Phase;
+use crate::error::StepError;
+use crate::model::Drive;
+
+/// A transition is located to this fraction of the sub-step.
+const EVENT_RESOLUTION: f64 = 1e-7;
+/// Bound on the regula falsi iterations that locate a transition.
+const MAX_LOCATE_ITERATIONS: usize = 60;
+
+impl Simulator {
+    /// Takes one sub-step towards time `t_target`. If a joint's margin changes
+    /// sign inside it (a slipping joint's velocity crosses zero, or a stuck
+    /// joint's static friction is exceeded), the sub-step is shortened to end
+    /// just past that instant, located by Illinois regula falsi, and the
+    /// joint's phase is decided there.
+    pub(crate) fn substep(&mut self, t_target: f64) -> Result<(), StepError> {
+        self.start.clone_from(&self.state);
+        self.prepare_iteration_matrix();
+        self.solve(t_target)?;
+        let Some(joint) = self.earliest_crossing() else {
+            return self.accept();
+        };
+        let t0 = self.start.time;
+        let h = t_target - t0;
+        let (mut lo, mut hi) = (0.0, 1.0);
+        let (mut g_lo, mut g_hi) = (self.start.margin[joint], self.state.margin[joint]);
+        let mut solved_at_hi = true;
+        let mut side = 0;
+        for _ in 0..MAX_LOCATE_ITERATIONS {
+            if hi - lo <= EVENT_RESOLUTION {
+                break;
+            }
+            let theta = (lo + (hi - lo) * g_lo / (g_lo - g_hi)).clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
+            self.solve(t0 + theta * h)?;
+            let g = self.state.margin[joint];
+            if g < 0.0 {
+                (hi, g_hi, solved_at_hi) = (theta, g, true);
+                if side == -1 {
+                    g_lo *= 0.5;
+                }
+                side = -1;
+            } else {
+                (lo, g_lo, solved_at_hi) = (theta, g, false);
+                if side == 1 {
+                    g_hi *= 0.5;
+                }
+                side = 1;
+            }
+        }
+        if !solved_at_hi {
+            self.solve(t0 + hi * h)?;
+        }
+        self.accept()?;
+        self.decided.fill(false);
+        self.decide_at_rest(joint)?;
+        self.settle_phases()
+    }
+
+    /// The joint whose margin crosses zero first in the solved sub-step, by
+    /// linear interpolation of the margins at its ends.
+    fn earliest_crossing(&self) -> Option<usize> {
+        let mut best: Option<(usize, f64)> = None;
+        for i in 0..self.model.nq() {
+            let (g0, g1) = (self.start.margin[i], self.state.margin[i]);
+            if g0 >= 0.0 && g1 < 0.0 && g0.is_finite() {
+                let theta = g0 / (g0 - g1);
+                if best.is_none_or(|(_, b)| theta < b) {
+                    best = Some((i, theta));
+                }
+            }
+        }
+        best.map(|(i, _)| i)
+    }
+
+    /// Accepts the solved sub-step: checks it is finite and books the works.
+    /// Work of a force over a sub-step is its mean times the displacement,
+    /// the form in which average-acceleration Newmark balances energy.
+    fn accept(&mut self) -> Result<(), StepError> {
+        let (s, st) = (&self.start, &mut self.state);
+        if st.q.iter().chain(&st.qd).chain(&st.qdd).any(|x| !x.is_finite()) {
+            return Err(StepError::NonFiniteState { time: st.time });
+        }
+        let e = &mut st.energy;
+        for (i, joint) in self.model.joints.iter().enumerate() {
+            let dq = st.q[i] - s.q[i];
+            let drive = 0.5 * (s.drive_force[i] + st.drive_force[i]);
+            e.friction_heat += 0.5 * (s.friction_force[i] + st.friction_force[i]) * dq;
+            match joint.drive {
+                Drive::Rigid => e.drive_work += drive * dq,
+                Drive::Flexible { .. } => {
+                    let dq_star = st.q_star[i] - s.q_star[i];
+                    e.drive_work += drive * dq_star;
+                    e.damping_heat += 0.5 * (s.damping_force[i] + st.damping_force[i]) * (dq_star - dq);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Decides the phase of joint `i`, which is at rest or just past a zero
+    /// of its velocity: it sticks if static friction can hold it (3.16);
+    /// otherwise it slips in the direction of the unbalanced force (3.18),
+    /// provided that this motion is consistent (it accelerates that way).
+    fn decide_at_rest(&mut self, i: usize) -> Result<(), StepError> {
+        let before = self.state.phase[i];
+        self.decided[i] = true;
+        self.state.qd[i] = 0.0;
+        self.state.phase[i] = Phase::Stuck;
+        self.evaluate()?;
+        if self.state.margin[i] < 0.0 {
+            let unbalanced = self.state.drive_force[i] - self.data.tau[i];
+            let d: i8 = if unbalanced > 0.0 { 1 } else { -1 };
+            self.state.phase[i] = Phase::Slipping(d);
+            self.evaluate()?;
+            if d as f64 * self.state.qdd[i] <= 0.0 {
+                // Friction that grows with the load it causes can leave no
+                // consistent slip: the joint stays stuck for now.
+                self.state.phase[i] = Phase::Stuck;
+                self.evaluate()?;
+            }
+        }
+        let after = self.state.phase[i];
+        self.log_transition(i, before, after);
+        Ok(())
+    }
+
+    /// Makes every joint's phase consistent with the current state: a stuck
+    /// joint whose static friction is exceeded breaks away, a slipping joint
+    /// at rest that accelerates against its direction is decided anew. Each
+    /// joint is decided at most once per instant.
+    pub(crate) fn settle_phases(&mut self) -> Result<(), StepError> {
+        self.decided.fill(false);
+        loop {
+            let st = &self.state;
+            let pending = (0..self.model.nq()).find(|&i| {
+                !self.decided[i]
+                    && match st.phase[i] {
+                        Phase::Stuck => st.margin[i] < 0.0,
+                        Phase::Slipping(d) => {
+                            st.margin[i].is_finite() && (d as f64 * st.qd[i] < 0.0 || (st.qd[i] == 0.0 && d as f64 * st.qdd[i] < 0.0))
+                        }
+                        Phase::Prescribed => false,
+                    }
+            });
+            match pending {
+                Some(i) => self.decide_at_rest(i)?,
+                None => return Ok(()),
+            }
+        }
+    }
+}
