@@ -256,9 +256,13 @@ impl Simulator {
         let t0 = self.state.time;
         self.inputs.set(t0, inputs);
         // Inputs may differ from the previous interval's extrapolation: make
-        // accelerations and phases consistent with them before stepping.
+        // accelerations and phases consistent with them before stepping. The
+        // drives did the work of that jump of q* (or of a rigid joint's q, q̇).
+        let before = self.state.energy.total();
         self.evaluate()?;
         self.settle_phases()?;
+        self.update_energies();
+        self.state.energy.drive_work += self.state.energy.total() - before;
         let h_max = self.model.integrator.h_max;
         let steps = (interval / h_max).ceil().max(1.0);
         let h = interval / steps;
@@ -279,9 +283,20 @@ impl Simulator {
     /// Recomputes the reported quantities that are not needed while stepping:
     /// energies and end points.
     pub(crate) fn update_reported(&mut self) {
+        self.update_energies();
         let model = &self.model;
         let st = &mut self.state;
-        // The workspace holds the kinematics and velocities of the current state.
+        st.end_point = end_point(model, &self.data);
+        // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
+        self.scratch.copy_from_slice(&st.q_star);
+        forward_kinematics(model, &mut self.data, &self.scratch);
+        st.end_point_rigid = end_point(model, &self.data);
+    }
+
+    /// Kinetic, gravity and spring energy of the current state, from the
+    /// workspace of its evaluation.
+    fn update_energies(&mut self) {
+        let (model, st) = (&self.model, &mut self.state);
         st.energy.kinetic = kinetic_energy(model, &self.data);
         st.energy.potential = potential_energy(model, &self.data);
         st.energy.spring = model
@@ -293,11 +308,6 @@ impl Simulator {
                 Drive::Rigid => 0.0,
             })
             .sum();
-        st.end_point = end_point(model, &self.data);
-        // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
-        self.scratch.copy_from_slice(&st.q_star);
-        forward_kinematics(model, &mut self.data, &self.scratch);
-        st.end_point_rigid = end_point(model, &self.data);
     }
 
     pub(crate) fn log_transition(&mut self, joint: usize, from: Phase, to: Phase) {
