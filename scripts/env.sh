@@ -1,0 +1,148 @@
+# shellcheck shell=bash
+# scripts/env.sh -- project environment. SOURCE it (the other scripts do):
+#
+#     source scripts/env.sh
+#
+# What it guarantees afterwards (idempotent; the warm path does no installs):
+#   * libclang (needed by bindgen, which the `fmi-sys` crate runs at build time)
+#     is installed: Debian package `libclang-dev` via apt-get when missing;
+#     LIBCLANG_PATH is exported pointing at the directory holding libclang.so.
+#   * a Python venv at $STICKSLIP_VENV (default: <repo>/.venv) exists and has
+#     requirements.txt installed; it is re-installed only when requirements.txt
+#     changes (sha256 stamp kept in the venv). Its bin/ is first on PATH, so
+#     `python` and `pytest` are the venv's.
+#   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
+#
+# Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
+# prints the reason and returns non-zero (so a `set -e` caller stops).
+# Running it as `bash scripts/env.sh` performs the installs (exports are lost).
+#
+# Knobs: STICKSLIP_VENV (venv dir), PYTHON (base interpreter, default python3),
+#        STICKSLIP_SKIP_APT=1 (never call apt-get; just warn if libclang missing).
+
+_stickslip_log() { printf 'env.sh: %s\n' "$*" >&2; }
+
+_stickslip_find_libclang_dir() {
+    # Prints a directory containing an unversioned libclang.so / libclang-N.so
+    # (what clang-sys/bindgen looks for). libclang-cpp.so is NOT libclang.
+    local d f
+    if [ -n "${LIBCLANG_PATH:-}" ]; then
+        for f in "$LIBCLANG_PATH"/libclang.so "$LIBCLANG_PATH"/libclang-*.so; do
+            case "$f" in *libclang-cpp*) continue ;; esac
+            if [ -e "$f" ]; then printf '%s\n' "$LIBCLANG_PATH"; return 0; fi
+        done
+    fi
+    # Debian: /usr/lib/llvm-N/lib/libclang.so (from libclang-N-dev); newest first.
+    for d in $(ls -d /usr/lib/llvm-*/lib 2>/dev/null | sort -t- -k2 -V -r); do
+        if [ -e "$d/libclang.so" ]; then printf '%s\n' "$d"; return 0; fi
+    done
+    for d in /usr/lib/x86_64-linux-gnu /usr/lib/aarch64-linux-gnu /usr/lib64 /usr/lib /usr/local/lib; do
+        for f in "$d"/libclang.so "$d"/libclang-[0-9]*.so; do
+            if [ -e "$f" ]; then printf '%s\n' "$d"; return 0; fi
+        done
+    done
+    return 1
+}
+
+_stickslip_ensure_libclang() {
+    local dir sudo=""
+    if dir=$(_stickslip_find_libclang_dir); then
+        export LIBCLANG_PATH="$dir"
+        return 0
+    fi
+    if [ "${STICKSLIP_SKIP_APT:-0}" = 1 ]; then
+        _stickslip_log "WARNING: libclang not found and STICKSLIP_SKIP_APT=1; bindgen (fmi-sys) will fail"
+        return 0
+    fi
+    if ! command -v apt-get >/dev/null 2>&1; then
+        _stickslip_log "ERROR: libclang not found and apt-get unavailable; install libclang (>= 9) and set LIBCLANG_PATH"
+        return 1
+    fi
+    if [ "$(id -u)" -ne 0 ]; then
+        if command -v sudo >/dev/null 2>&1; then
+            sudo="sudo -n"
+        else
+            _stickslip_log "ERROR: libclang missing, not root and no sudo: run 'apt-get install libclang-dev' as root"
+            return 1
+        fi
+    fi
+    _stickslip_log "libclang not found: installing Debian package libclang-dev (apt-get)..."
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q </dev/null >&2 || {
+        _stickslip_log "ERROR: apt-get update failed"; return 1; }
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends libclang-dev </dev/null >&2 || {
+        _stickslip_log "ERROR: apt-get install libclang-dev failed"; return 1; }
+    if dir=$(_stickslip_find_libclang_dir); then
+        export LIBCLANG_PATH="$dir"
+        _stickslip_log "libclang installed; LIBCLANG_PATH=$dir"
+        return 0
+    fi
+    _stickslip_log "ERROR: libclang-dev installed but no libclang.so found"
+    return 1
+}
+
+_stickslip_ensure_venv() {
+    local root="$1" venv="$2" req="$1/requirements.txt" py want have=""
+    py="${PYTHON:-python3}"
+    # -x follows the symlink: a venv whose base interpreter vanished is rebuilt.
+    if [ ! -x "$venv/bin/python" ]; then
+        if ! command -v "$py" >/dev/null 2>&1; then
+            _stickslip_log "ERROR: base interpreter '$py' not found (set PYTHON=...)"; return 1
+        fi
+        _stickslip_log "creating Python venv at $venv (with $("$py" --version 2>&1))..."
+        rm -rf "$venv"
+        "$py" -m venv "$venv" </dev/null >&2 || {
+            _stickslip_log "ERROR: '$py -m venv $venv' failed"; return 1; }
+    fi
+    [ -f "$req" ] || return 0
+    want=$(sha256sum "$req" | cut -d' ' -f1) || return 1
+    [ -f "$venv/.requirements.sha256" ] && have=$(cat "$venv/.requirements.sha256")
+    if [ "$want" != "$have" ]; then
+        _stickslip_log "installing requirements.txt into $venv (changed since last install)..."
+        PIP_DISABLE_PIP_VERSION_CHECK=1 "$venv/bin/python" -m pip install -q \
+            --no-input -r "$req" </dev/null >&2 || {
+            _stickslip_log "ERROR: pip install -r requirements.txt failed"; return 1; }
+        printf '%s\n' "$want" >"$venv/.requirements.sha256"
+    fi
+    return 0
+}
+
+_stickslip_env_main() {
+    local root venv
+    root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd) || return 1
+    export STICKSLIP_ROOT="$root"
+    venv="${STICKSLIP_VENV:-$root/.venv}"
+
+    # cargo from rustup when the caller's PATH lacks it (e.g. a bare CI shell).
+    if ! command -v cargo >/dev/null 2>&1 && [ -x "$HOME/.cargo/bin/cargo" ]; then
+        export PATH="$HOME/.cargo/bin:$PATH"
+    fi
+
+    # NB: functions called in a `||` list run with `set -e` disabled, hence the
+    # explicit `|| return 1` on every step inside them.
+    _stickslip_ensure_libclang || return 1
+    _stickslip_ensure_venv "$root" "$venv" || return 1
+
+    export VIRTUAL_ENV="$venv"
+    case ":$PATH:" in
+        *":$venv/bin:"*) ;;
+        *) export PATH="$venv/bin:$PATH" ;;
+    esac
+    export MPLBACKEND="${MPLBACKEND:-Agg}"
+    return 0
+}
+
+if _stickslip_env_main; then
+    _stickslip_env_rc=0
+else
+    _stickslip_env_rc=1
+    _stickslip_log "environment setup FAILED"
+fi
+unset -f _stickslip_env_main _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_find_libclang_dir _stickslip_log
+# `return` when sourced, `exit` when run as a script.
+if [ "$_stickslip_env_rc" -eq 0 ]; then
+    unset _stickslip_env_rc
+    return 0 2>/dev/null || exit 0
+else
+    unset _stickslip_env_rc
+    return 1 2>/dev/null || exit 1
+fi

@@ -1,0 +1,110 @@
+//! The contact models turn a joint reaction into normal loads that balance it.
+//!
+//! Bearings (3.15): the radial forces of bearing A (l_A below the reaction
+//! point) and B (l_B above it) add up to the radial joint force and their
+//! moments to the bending moment. Slider (3.11): eight corner forces (four
+//! across x, four across y, at the slider ends ±a/2 and edges ±b/2, ±c/2)
+//! balance the force and moment at the slider centre, and N_s is the sum of
+//! their magnitudes. Drives (2.1) and the friction characteristic are checked
+//! at their special points. Tolerance 1e-12 relative.
+
+mod common;
+
+use common::Rng;
+use stick_slip_manipulator::forces::drive::{drive_force, spring_energy};
+use stick_slip_manipulator::forces::friction::{bearing_loads, contact_load, slider_normal_load};
+use stick_slip_manipulator::math::Vec3;
+use stick_slip_manipulator::model::{ContactGeometry, FrictionCoefficients};
+
+#[test]
+fn bearing_forces_balance_the_joint_reaction() {
+    let mut rng = Rng::new(5);
+    for _ in 0..200 {
+        let (l_a, l_b) = (rng.range(0.01, 0.2), rng.range(0.01, 0.2));
+        let (f, n) = (rng.vec3(1e3), rng.vec3(1e2));
+        let l = l_a + l_b;
+        // Statically determinate split of the radial load between A and B.
+        let f_a = Vec3::new((l_b * f.x - n.y) / l, (l_b * f.y + n.x) / l, 0.0);
+        let f_b = Vec3::new(f.x, f.y, 0.0) - f_a;
+        let moment = Vec3::new(0.0, 0.0, -l_a).cross(&f_a) + Vec3::new(0.0, 0.0, l_b).cross(&f_b);
+        assert!((moment.xy() - n.xy()).norm() < 1e-12 * n.norm(), "bending moment not balanced");
+        let (r_a, r_b) = bearing_loads(l_a, l_b, &f, &n);
+        assert!((r_a - f_a.norm()).abs() < 1e-12 * r_a.max(1.0));
+        assert!((r_b - f_b.norm()).abs() < 1e-12 * r_b.max(1.0));
+    }
+}
+
+#[test]
+fn bearing_friction_moment_is_eq_3_14() {
+    let geometry = ContactGeometry::Bearings { reaction_point: Vec3::zeros(), l_a: 0.06, l_b: 0.06, d_a: 0.1, d_b: 0.08, d_c: 0.12 };
+    // Pure radial force through the midpoint: each bearing takes half.
+    let load = contact_load(&geometry, &Vec3::new(300.0, 400.0, 0.0), &Vec3::zeros());
+    assert!((load.normal - 500.0).abs() < 1e-12);
+    assert!((load.lever_load - (250.0 * 0.05 + 250.0 * 0.04)).abs() < 1e-12);
+    // Pure thrust: ⅔·|f_z|·d_C/2.
+    let load = contact_load(&geometry, &Vec3::new(0.0, 0.0, -90.0), &Vec3::zeros());
+    assert!((load.normal - 90.0).abs() < 1e-12);
+    assert!((load.lever_load - 2.0 / 3.0 * 90.0 * 0.06).abs() < 1e-12);
+    // Pure bending moment n_x: a couple ±n_x/l on A and B.
+    let load = contact_load(&geometry, &Vec3::zeros(), &Vec3::new(12.0, 0.0, 0.0));
+    assert!((load.normal - 2.0 * 12.0 / 0.12).abs() < 1e-12);
+    // The moment about the axis is the drive's and the friction's, not a bearing load.
+    let load = contact_load(&geometry, &Vec3::zeros(), &Vec3::new(0.0, 0.0, 55.0));
+    assert_eq!(load.normal, 0.0);
+}
+
+#[test]
+fn slider_corner_forces_balance_the_reaction() {
+    let mut rng = Rng::new(9);
+    for _ in 0..500 {
+        let (a, b, c) = (rng.range(0.05, 0.5), rng.range(0.0, 0.1), rng.range(0.01, 0.1));
+        let (f, n) = (rng.vec3(1e3), rng.vec3(1e2));
+        let bc = b * b + c * c;
+        // Corners across y: at x = ±b/2, z = ±a/2; across x: at y = ±c/2, z = ±a/2.
+        let mut corners = Vec::new();
+        for sz in [-1.0, 1.0] {
+            for sx in [-1.0, 1.0] {
+                let fy = f.y / 4.0 - sz * n.x / (2.0 * a) + sx * n.z * b / (2.0 * bc);
+                corners.push((Vec3::new(sx * b / 2.0, 0.0, sz * a / 2.0), Vec3::new(0.0, fy, 0.0)));
+                let sy = sx;
+                let fx = f.x / 4.0 + sz * n.y / (2.0 * a) - sy * n.z * c / (2.0 * bc);
+                corners.push((Vec3::new(0.0, sy * c / 2.0, sz * a / 2.0), Vec3::new(fx, 0.0, 0.0)));
+            }
+        }
+        let force: Vec3 = corners.iter().map(|(_, f)| f).sum();
+        let moment: Vec3 = corners.iter().map(|(r, f)| r.cross(f)).sum();
+        assert!((force - Vec3::new(f.x, f.y, 0.0)).norm() < 1e-9, "corner forces {force} vs {f}");
+        assert!((moment - n).norm() < 1e-9, "corner moments {moment} vs {n}");
+        let total: f64 = corners.iter().map(|(_, f)| f.norm()).sum();
+        let n_s = slider_normal_load(a, b, c, &f, &n);
+        assert!((n_s - total).abs() < 1e-12 * total, "N_s {n_s} vs Σ|corner| {total}");
+    }
+}
+
+#[test]
+fn drive_force_with_clearance_is_eq_2_1() {
+    let (k, h, gap) = (1e6, 1e3, 0.002);
+    // Inside the clearance the drive transmits nothing, damping included.
+    assert_eq!(drive_force(k, h, gap, 0.0015, 1.0, 0.0, 0.0), 0.0);
+    assert_eq!(drive_force(k, h, gap, -0.0015, 1.0, 0.0, 0.0), 0.0);
+    // Outside: k(q* − q − σΔ) + h(q̇* − q̇), σ = sgn(q* − q).
+    assert!((drive_force(k, h, gap, 0.005, 0.3, 0.001, 0.1) - (k * (0.004 - gap) + h * 0.2)).abs() < 1e-9);
+    assert!((drive_force(k, h, gap, -0.005, 0.3, 0.001, 0.1) - (k * (-0.006 + gap) + h * 0.2)).abs() < 1e-9);
+    // The elastic part is continuous where the clearance is taken up.
+    assert!(drive_force(k, 0.0, gap, gap * (1.0 + 1e-12), 0.0, 0.0, 0.0).abs() < 1e-6);
+    assert!((spring_energy(k, gap, 0.005, 0.0) - 0.5 * k * 0.003f64.powi(2)).abs() < 1e-12);
+    assert_eq!(spring_energy(k, gap, 0.001, 0.0), 0.0);
+    // No clearance: a plain spring and damper.
+    assert_eq!(drive_force(k, h, 0.0, 1e-3, 0.0, 0.0, 0.0), 1e3);
+}
+
+#[test]
+fn decreasing_friction_characteristic() {
+    let c = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01 };
+    assert_eq!(c.kinetic(0.0), 0.2);
+    assert!((c.kinetic(0.01) - (0.12 + 0.08 / std::f64::consts::E)).abs() < 1e-15);
+    assert_eq!(c.kinetic(-0.01), c.kinetic(0.01));
+    assert!((c.kinetic(1.0) - 0.12).abs() < 1e-15);
+    let constant = FrictionCoefficients { stribeck_velocity: 0.0, ..c };
+    assert_eq!(constant.kinetic(0.0), 0.12);
+}

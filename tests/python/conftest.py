@@ -1,0 +1,51 @@
+"""pytest configuration for tests/python (configuration only: no fixtures here).
+
+Marker ``slow``: long-running tests (e.g. full reference simulations through the
+FMU). They are *deselected* by default, so ``scripts/test.sh`` / CI stays fast.
+Run them with ``pytest --runslow`` or ``RUN_SLOW=1 pytest``; run only them with
+``pytest -m slow --runslow`` (what ``scripts/main.sh`` does).
+"""
+
+import os
+
+import pytest
+
+
+def _truthy(value):
+    return value.strip().lower() in ("1", "true", "yes", "on")
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--runslow",
+        action="store_true",
+        default=False,
+        help="also run tests marked @pytest.mark.slow (same as env RUN_SLOW=1)",
+    )
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "slow: long-running test; deselected unless --runslow or RUN_SLOW=1",
+    )
+
+
+def _run_slow(config):
+    return config.getoption("--runslow") or _truthy(os.environ.get("RUN_SLOW", ""))
+
+
+def pytest_collection_modifyitems(config, items):
+    if _run_slow(config):
+        return
+    selected, deselected = [], []
+    for item in items:
+        (deselected if item.get_closest_marker("slow") else selected).append(item)
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = selected
+
+
+def pytest_report_header(config):
+    state = "included" if _run_slow(config) else "deselected (use --runslow or RUN_SLOW=1)"
+    return f"slow tests: {state}"
