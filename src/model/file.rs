@@ -19,6 +19,7 @@ struct ModelFile {
     gravity: [f64; 3],
     end_point: [f64; 3],
     integrator: Option<IntegratorFile>,
+    #[serde(default)]
     joint: Vec<JointFile>,
 }
 

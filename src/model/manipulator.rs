@@ -197,8 +197,9 @@ fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
     check_value(&f("mass"), link.mass, Range::Positive)?;
     check_vec(&f("com"), &link.com)?;
     let i = &link.inertia;
-    for (k, x) in i.iter().enumerate() {
-        check_value(&f(&format!("inertia[{}]", k + 1)), *x, Range::Any)?;
+    const ENTRIES: [&str; 9] = ["xx", "xy", "xz", "xy", "yy", "yz", "xz", "yz", "zz"];
+    for (name, x) in ENTRIES.iter().zip(i.iter()) {
+        check_value(&f(&format!("inertia.{name}")), *x, Range::Any)?;
     }
     if (i - i.transpose()).amax() > 1e-12 * i.amax().max(1e-300) {
         return Err(ModelError::Invalid { field: f("inertia"), reason: "tensor is not symmetric".into() });

@@ -90,9 +90,9 @@ impl Parameter {
 }
 
 impl Model {
-    /// A mutable reference to the storage of `p` of joint `joint` (0-based),
-    /// or `None` if the joint does not have this parameter (a rigid drive has
-    /// no stiffness, a revolute joint no slider …).
+    /// Where parameter `p` of joint `joint` (0-based) is stored, or `None`
+    /// if the joint does not have it (a rigid drive has no stiffness, a
+    /// revolute joint no slider …).
     fn parameter_slot(&mut self, p: Parameter, joint: usize) -> Option<&mut f64> {
         let link = self.links.get_mut(joint)?;
         let j = self.joints.get_mut(joint)?;
@@ -132,7 +132,16 @@ impl Model {
 
     /// Value of parameter `p` of joint `joint` (0-based), if it has one.
     pub fn parameter(&self, p: Parameter, joint: usize) -> Option<f64> {
-        self.clone().parameter_slot(p, joint).map(|v| *v)
+        // One lookup for reads and writes: a copy of the joint and link is cheap.
+        let mut one = Model {
+            name: String::new(),
+            joints: vec![*self.joints.get(joint)?],
+            links: vec![*self.links.get(joint)?],
+            gravity: self.gravity,
+            end_point: self.end_point,
+            integrator: self.integrator,
+        };
+        one.parameter_slot(p, 0).map(|v| *v)
     }
 
     /// Sets parameter `p` of joint `joint` (0-based) after checking the value's
@@ -140,13 +149,15 @@ impl Model {
     /// [`Model::validate`], since a caller sets them one at a time.
     pub fn set_parameter(&mut self, p: Parameter, joint: usize, value: f64) -> Result<(), ModelError> {
         let field = format!("{}[{}]", p.name(), joint + 1);
-        check_value(&field, value, p.range())?;
-        match self.parameter_slot(p, joint) {
-            Some(slot) => {
-                *slot = value;
-                Ok(())
-            }
-            None => Err(ModelError::Invalid { field, reason: "this joint has no such parameter".into() }),
+        let n = self.nq();
+        if joint >= n {
+            return Err(ModelError::Invalid { field, reason: format!("the model has {n} joints") });
         }
+        let Some(slot) = self.parameter_slot(p, joint) else {
+            return Err(ModelError::Invalid { field, reason: "this joint has no such parameter".into() });
+        };
+        check_value(&field, value, p.range())?;
+        *slot = value;
+        Ok(())
     }
 }

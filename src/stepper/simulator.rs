@@ -21,6 +21,8 @@ pub struct Transition {
     pub from: Phase,
     /// Phase after.
     pub to: Phase,
+    /// Drive force F^d at the transition.
+    pub drive_force: f64,
 }
 
 /// How many transitions are kept between two calls of
@@ -222,6 +224,7 @@ impl Simulator {
         }
         self.clear_transitions();
         self.evaluate()?;
+        self.decided.fill(false);
         self.settle_phases()?;
         self.update_reported();
         self.initialized = true;
@@ -260,6 +263,7 @@ impl Simulator {
         // drives did the work of that jump of q* (or of a rigid joint's q, q̇).
         let before = self.state.energy.total();
         self.evaluate()?;
+        self.decided.fill(false);
         self.settle_phases()?;
         self.update_energies();
         self.state.energy.drive_work += self.state.energy.total() - before;
@@ -315,7 +319,8 @@ impl Simulator {
             return;
         }
         if self.transitions.len() < TRANSITION_LOG_CAPACITY {
-            self.transitions.push(Transition { time: self.state.time, joint, from, to });
+            let drive_force = self.state.drive_force[joint];
+            self.transitions.push(Transition { time: self.state.time, joint, from, to, drive_force });
         } else {
             self.transitions_dropped += 1;
         }

@@ -18,6 +18,10 @@ impl Simulator {
     /// just past that instant, located by Illinois regula falsi, and the
     /// joint's phase is decided there.
     pub(crate) fn substep(&mut self, t_target: f64) -> Result<(), StepError> {
+        // A phase change that could not happen at the previous instant (a
+        // marginal slip) is tried again at this one.
+        self.decided.fill(false);
+        self.settle_phases()?;
         self.start.clone_from(&self.state);
         self.prepare_iteration_matrix();
         self.solve(t_target)?;
@@ -56,7 +60,8 @@ impl Simulator {
         }
         self.accept()?;
         self.decided.fill(false);
-        self.decide_at_rest(joint)?;
+        let breakaway = self.state.phase[joint] == Phase::Stuck;
+        self.decide_at_rest(joint, breakaway)?;
         self.settle_phases()
     }
 
@@ -104,8 +109,11 @@ impl Simulator {
     /// Decides the phase of joint `i`, which is at rest or just past a zero
     /// of its velocity: it sticks if static friction can hold it (3.16);
     /// otherwise it slips in the direction of the unbalanced force (3.18),
-    /// provided that this motion is consistent (it accelerates that way).
-    fn decide_at_rest(&mut self, i: usize) -> Result<(), StepError> {
+    /// provided that this motion is consistent (it accelerates that way). At
+    /// a located `breakaway` the unbalanced force has just reached the static
+    /// limit and the slip acceleration is zero up to the iteration tolerance:
+    /// the joint slips without that check.
+    fn decide_at_rest(&mut self, i: usize, breakaway: bool) -> Result<(), StepError> {
         let before = self.state.phase[i];
         self.decided[i] = true;
         self.state.qd[i] = 0.0;
@@ -116,7 +124,7 @@ impl Simulator {
             let d: i8 = if unbalanced > 0.0 { 1 } else { -1 };
             self.state.phase[i] = Phase::Slipping(d);
             self.evaluate()?;
-            if d as f64 * self.state.qdd[i] <= 0.0 {
+            if !breakaway && d as f64 * self.state.qdd[i] <= 0.0 {
                 // Friction that grows with the load it causes can leave no
                 // consistent slip: the joint stays stuck for now.
                 self.state.phase[i] = Phase::Stuck;
@@ -131,25 +139,30 @@ impl Simulator {
     /// Makes every joint's phase consistent with the current state: a stuck
     /// joint whose static friction is exceeded breaks away, a slipping joint
     /// at rest that accelerates against its direction is decided anew. Each
-    /// joint is decided at most once per instant.
+    /// joint is decided at most once per instant (`self.decided` is cleared
+    /// when time moves on).
     pub(crate) fn settle_phases(&mut self) -> Result<(), StepError> {
-        self.decided.fill(false);
-        loop {
-            let st = &self.state;
-            let pending = (0..self.model.nq()).find(|&i| {
-                !self.decided[i]
-                    && match st.phase[i] {
-                        Phase::Stuck => st.margin[i] < 0.0,
-                        Phase::Slipping(d) => {
-                            st.margin[i].is_finite() && (d as f64 * st.qd[i] < 0.0 || (st.qd[i] == 0.0 && d as f64 * st.qdd[i] < 0.0))
-                        }
-                        Phase::Prescribed => false,
-                    }
-            });
-            match pending {
-                Some(i) => self.decide_at_rest(i)?,
-                None => return Ok(()),
-            }
+        while let Some(i) = self.pending_phase_change() {
+            self.decide_at_rest(i, false)?;
         }
+        Ok(())
+    }
+
+    /// A joint, not yet decided at this instant, whose phase disagrees with
+    /// the state: stuck with its static friction exceeded, or slipping against
+    /// its direction.
+    fn pending_phase_change(&self) -> Option<usize> {
+        let st = &self.state;
+        (0..self.model.nq()).find(|&i| {
+            !self.decided[i]
+                && match st.phase[i] {
+                    Phase::Stuck => st.margin[i] < 0.0,
+                    Phase::Slipping(d) => {
+                        let d = d as f64;
+                        st.margin[i].is_finite() && (d * st.qd[i] < 0.0 || (st.qd[i] == 0.0 && d * st.qdd[i] < 0.0))
+                    }
+                    Phase::Prescribed => false,
+                }
+        })
     }
 }

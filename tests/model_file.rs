@@ -1,0 +1,555 @@
+// Model files and parameter changes: a bad model gets one clear error, never a
+// panic. The shipped reference file `models/reference_rrpr.toml` must parse to
+// the RRPR arm it describes (and equal `Model::reference_rrpr()`); every
+// rejected case below is made by one small textual edit of that file and must
+// come back as exactly one `ModelError` of the expected variant whose field
+// names the offending entry (e.g. `joint[3].drive.k`, with 1-based joint
+// numbers as in the file) and whose message carries that field and the reason;
+// syntax errors name the key and the line. `Model::set_parameter` must reject
+// out-of-range and non-finite values and parameters a joint does not have,
+// leaving the model untouched, while relations between parameters are left to
+// `Model::validate`. Long generated chains (24 and `MAX_JOINTS` joints) must
+// parse and validate, one joint more must not.
+
+use stick_slip_manipulator::model::{ContactGeometry, Drive, JointKind, Parameter, MAX_JOINTS, REFERENCE_RRPR_TOML};
+use stick_slip_manipulator::{Model, ModelError};
+
+const REFERENCE_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/reference_rrpr.toml");
+const JOINT_HEADER: &str = "[[joint]]";
+
+// ---------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------
+
+/// The reference text with the first occurrence of `from` replaced by `to`.
+#[track_caller]
+fn edit(from: &str, to: &str) -> String {
+    edit_text(REFERENCE_RRPR_TOML, from, to)
+}
+
+#[track_caller]
+fn edit_text(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "the text does not contain `{from}`; the edit would be a no-op");
+    text.replacen(from, to, 1)
+}
+
+/// Byte range of the `[[joint]]` section of joint `number` (1-based) in `text`.
+#[track_caller]
+fn joint_section(text: &str, number: usize) -> std::ops::Range<usize> {
+    let starts: Vec<usize> = text.match_indices(JOINT_HEADER).map(|(i, _)| i).collect();
+    assert!(number >= 1 && number <= starts.len(), "the text has no joint {number}");
+    let start = starts[number - 1];
+    let end = starts.get(number).copied().unwrap_or(text.len());
+    start..end
+}
+
+/// The reference text with the first occurrence of `from` inside the section
+/// of joint `number` (1-based) replaced by `to`.
+#[track_caller]
+fn edit_joint(number: usize, from: &str, to: &str) -> String {
+    let text = REFERENCE_RRPR_TOML;
+    let range = joint_section(text, number);
+    let section = edit_text(&text[range.clone()], from, to);
+    format!("{}{}{}", &text[..range.start], section, &text[range.end..])
+}
+
+/// The error of a text that must not parse.
+#[track_caller]
+fn rejected(text: &str) -> ModelError {
+    match Model::from_toml_str(text) {
+        Ok(_) => panic!("the model was accepted:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+fn same_value(a: f64, b: f64) -> bool {
+    (a.is_nan() && b.is_nan()) || a == b
+}
+
+/// `e` is `InvalidParameter` for exactly `want_field` with value `want_value`,
+/// its reason contains `reason_has`, and the message names the field.
+#[track_caller]
+fn assert_invalid_parameter(e: &ModelError, want_field: &str, want_value: f64, reason_has: &str) {
+    match e {
+        ModelError::InvalidParameter { field, value, reason } => {
+            assert_eq!(field, want_field, "wrong field in: {e}");
+            assert!(same_value(*value, want_value), "value {value} instead of {want_value} in: {e}");
+            assert!(reason.contains(reason_has), "reason does not say `{reason_has}`: {e}");
+        }
+        other => panic!("expected InvalidParameter for `{want_field}`, got {other:?}"),
+    }
+    let message = e.to_string();
+    assert!(message.contains(want_field), "message does not name `{want_field}`: {message}");
+}
+
+/// `e` is `Invalid` for exactly `want_field`, its reason contains
+/// `reason_has`, and the message names the field.
+#[track_caller]
+fn assert_invalid(e: &ModelError, want_field: &str, reason_has: &str) {
+    match e {
+        ModelError::Invalid { field, reason } => {
+            assert_eq!(field, want_field, "wrong field in: {e}");
+            assert!(reason.contains(reason_has), "reason does not say `{reason_has}`: {e}");
+        }
+        other => panic!("expected Invalid for `{want_field}`, got {other:?}"),
+    }
+    let message = e.to_string();
+    assert!(message.contains(want_field), "message does not name `{want_field}`: {message}");
+}
+
+/// `e` is `Syntax` and its message contains every string of `has` (the key,
+/// the parser's reason, the line).
+#[track_caller]
+fn assert_syntax(e: &ModelError, has: &[&str]) {
+    assert!(matches!(e, ModelError::Syntax { .. }), "expected Syntax, got {e:?}");
+    let message = e.to_string();
+    for s in has {
+        assert!(message.contains(s), "message does not contain `{s}`: {message}");
+    }
+}
+
+/// A chain of `n` joints alternating revolute / prismatic; every third joint
+/// has a flexible drive with friction and its contact geometry.
+fn chain_toml(n: usize) -> String {
+    let mut text = String::from(
+        "name = \"chain\"\ngravity = [0.0, 0.0, -9.81]\nend_point = [0.05, 0.0, 0.0]\n\n\
+         [integrator]\nh_max = 1e-5\n",
+    );
+    for i in 1..=n {
+        let revolute = i % 2 == 1;
+        let flexible = i % 3 == 1;
+        text.push_str("\n[[joint]]\n");
+        text.push_str(if revolute { "type = \"revolute\"\n" } else { "type = \"prismatic\"\n" });
+        text.push_str("theta = 0.0\nd = 0.1\na = 0.05\n");
+        text.push_str(if i % 2 == 0 { "alpha = 1.5707963267948966\n" } else { "alpha = 0.0\n" });
+        if flexible {
+            text.push_str("drive = { type = \"flexible\", k = 1.0e5, h = 2.0, clearance = 1e-4 }\n");
+            text.push_str("friction = { mu_k = 0.1, mu_s = 0.15, v_s = 0.01 }\n");
+            if revolute {
+                text.push_str(
+                    "bearings = { reaction_point = [0.0, 0.0, 0.05], l_a = 0.03, l_b = 0.03, \
+                     d_a = 0.04, d_b = 0.04, d_c = 0.05 }\n",
+                );
+            } else {
+                text.push_str("slider = { centre = [0.0, 0.0, -0.05], a = 0.1, b = 0.03, c = 0.02 }\n");
+            }
+        } else {
+            text.push_str("drive = { type = \"rigid\" }\n");
+        }
+        let mass = 1.0 + 0.1 * i as f64;
+        text.push_str(&format!(
+            "link = {{ mass = {mass:?}, com = [0.0, 0.0, -0.05], \
+             inertia = {{ xx = 0.01, yy = 0.012, zz = 0.005, xy = 0.001 }} }}\n"
+        ));
+    }
+    text
+}
+
+// ---------------------------------------------------------------------------
+// The shipped reference file
+// ---------------------------------------------------------------------------
+
+#[test]
+fn reference_file_parses_to_the_rrpr_arm() {
+    let model = Model::from_file(REFERENCE_PATH).expect("the reference file is valid");
+    model.validate().expect("the reference model validates");
+    assert_eq!(model.name, "reference_rrpr");
+    assert_eq!(model.nq(), 4);
+    assert_eq!(model.links.len(), 4);
+
+    let kinds: Vec<JointKind> = model.joints.iter().map(|j| j.kind).collect();
+    assert_eq!(kinds, [JointKind::Revolute, JointKind::Revolute, JointKind::Prismatic, JointKind::Revolute]);
+
+    for (i, joint) in model.joints.iter().enumerate() {
+        let number = i + 1;
+        match number {
+            1 | 3 => {
+                match joint.drive {
+                    Drive::Flexible { stiffness, damping, clearance } => {
+                        assert_eq!(stiffness, 1e6, "joint {number}");
+                        assert_eq!(damping, 0.0, "joint {number}");
+                        assert_eq!(clearance, 0.0, "joint {number}");
+                    }
+                    Drive::Rigid => panic!("joint {number} should have a flexible drive"),
+                }
+                let friction = joint.friction.expect("joints 1 and 3 have friction");
+                assert_eq!(friction.coefficients.mu_kinetic, 0.2, "joint {number}");
+                assert_eq!(friction.coefficients.mu_static, 0.2, "joint {number}");
+                assert_eq!(friction.coefficients.stribeck_velocity, 0.0, "joint {number}");
+                let geometry_fits = matches!(
+                    (joint.kind, friction.geometry),
+                    (JointKind::Revolute, ContactGeometry::Bearings { .. })
+                        | (JointKind::Prismatic, ContactGeometry::Slider { .. })
+                );
+                assert!(geometry_fits, "joint {number} has the wrong contact geometry");
+            }
+            _ => {
+                assert_eq!(joint.drive, Drive::Rigid, "joint {number}");
+                assert!(joint.friction.is_none(), "joint {number} should be frictionless");
+            }
+        }
+    }
+
+    let masses: Vec<f64> = model.links.iter().map(|l| l.mass).collect();
+    assert_eq!(masses, [25.0, 15.0, 8.0, 4.0]);
+
+    assert_eq!(Model::reference_rrpr(), model);
+    assert_eq!(Model::from_toml_str(REFERENCE_RRPR_TOML).unwrap(), model);
+}
+
+#[test]
+fn edit_helper_targets_the_named_joint() {
+    // Joints 1 and 3 have identical drive lines; the helper must edit only
+    // the section asked for.
+    let text = edit_joint(3, "k = 1.0e6", "k = 2.0e6");
+    let model = Model::from_toml_str(&text).unwrap();
+    assert_eq!(model.parameter(Parameter::Stiffness, 0), Some(1e6));
+    assert_eq!(model.parameter(Parameter::Stiffness, 2), Some(2e6));
+}
+
+// ---------------------------------------------------------------------------
+// Structure and syntax
+// ---------------------------------------------------------------------------
+
+#[test]
+fn unknown_joint_type_is_a_syntax_error() {
+    let e = rejected(&edit_joint(2, "type = \"revolute\"", "type = \"screw\""));
+    assert_syntax(&e, &["unknown variant `screw`", "`revolute`", "`prismatic`", "line 38"]);
+}
+
+#[test]
+fn misspelt_key_is_rejected_not_defaulted() {
+    let e = rejected(&edit_joint(3, "k = 1.0e6", "stifness = 1.0e6"));
+    assert_syntax(&e, &["unknown field `stifness`", "`k`", "line 53"]);
+
+    let e = rejected(&edit("tolerance = 1e-10", "tolerence = 1e-10"));
+    assert_syntax(&e, &["unknown field `tolerence`", "line 20"]);
+}
+
+#[test]
+fn missing_required_field_is_a_syntax_error() {
+    let e = rejected(&edit_joint(1, "mass = 25.0, ", ""));
+    assert_syntax(&e, &["missing field `mass`", "line 34"]);
+
+    let e = rejected(&edit_joint(1, "d = 0.6\n", ""));
+    assert_syntax(&e, &["missing field `d`"]);
+
+    let e = rejected(&edit("gravity = [0.0, 0.0, -9.81]", ""));
+    assert_syntax(&e, &["missing field `gravity`"]);
+}
+
+#[test]
+fn toml_syntax_error_is_a_syntax_error() {
+    let e = rejected(&edit("name = \"reference_rrpr\"", "name = \"reference_rrpr"));
+    assert_syntax(&e, &["line 12"]);
+
+    let e = rejected(&edit_joint(1, "d = 0.6", "d = 0.6 +"));
+    assert_syntax(&e, &["line 27"]);
+
+    let e = rejected(&edit("max_iterations = 50", "max_iterations = -1"));
+    assert_syntax(&e, &["`-1`", "line 21"]);
+}
+
+#[test]
+fn zero_joints_are_rejected() {
+    let header = &REFERENCE_RRPR_TOML[..REFERENCE_RRPR_TOML.find(JOINT_HEADER).unwrap()];
+    // No [[joint]] section at all: the chain-length check names it.
+    let e = rejected(header);
+    assert_invalid(&e, "joint", "0 joints");
+    // An explicitly empty chain reaches validation.
+    let empty = edit_text(header, "end_point = [0.1, 0.0, 0.0]", "end_point = [0.1, 0.0, 0.0]\njoint = []");
+    let e = rejected(&empty);
+    assert_invalid(&e, "joint", "0 joints");
+}
+
+#[test]
+fn more_than_max_joints_are_rejected() {
+    let last = &REFERENCE_RRPR_TOML[joint_section(REFERENCE_RRPR_TOML, 4)];
+    let with_extra = |extra: usize| format!("{REFERENCE_RRPR_TOML}\n{}", format!("{last}\n").repeat(extra));
+
+    let full = Model::from_toml_str(&with_extra(MAX_JOINTS - 4)).expect("MAX_JOINTS joints are accepted");
+    assert_eq!(full.nq(), MAX_JOINTS);
+
+    let e = rejected(&with_extra(MAX_JOINTS - 3));
+    assert_invalid(&e, "joint", &format!("{} joints", MAX_JOINTS + 1));
+}
+
+#[test]
+fn contact_geometry_must_match_the_joint_kind() {
+    // Friction on a revolute joint without bearings.
+    let e = rejected(&edit_joint(1, "bearings = {", "# bearings = {"));
+    assert_invalid(&e, "joint[1].bearings", "friction");
+
+    // Friction on a prismatic joint without a slider.
+    let e = rejected(&edit_joint(3, "slider = {", "# slider = {"));
+    assert_invalid(&e, "joint[3].slider", "friction");
+
+    // A slider on a revolute joint.
+    let e = rejected(&edit_joint(
+        4,
+        "drive = { type = \"rigid\" }",
+        "drive = { type = \"rigid\" }\nslider = { centre = [0.0, 0.0, 0.0], a = 0.1, b = 0.05, c = 0.05 }",
+    ));
+    assert_invalid(&e, "joint[4].slider", "revolute");
+
+    // Bearings on a prismatic joint.
+    let e = rejected(&edit_joint(
+        3,
+        "slider = { centre = [0.0, 0.0, -0.7], a = 0.2, b = 0.07, c = 0.07 }",
+        "bearings = { reaction_point = [0.0, 0.0, 0.0], l_a = 0.06, l_b = 0.06, d_a = 0.1, d_b = 0.1, d_c = 0.1 }",
+    ));
+    assert_invalid(&e, "joint[3].bearings", "prismatic");
+
+    // Both on one joint.
+    let e = rejected(&edit_joint(
+        1,
+        "friction = {",
+        "slider = { centre = [0.0, 0.0, 0.0], a = 0.1, b = 0.05, c = 0.05 }\nfriction = {",
+    ));
+    assert_invalid(&e, "joint[1]", "both");
+}
+
+#[test]
+fn bearing_geometry_is_checked() {
+    let e = rejected(&edit_joint(1, "reaction_point = [0.0, 0.0, 0.06]", "reaction_point = [0.01, 0.0, 0.06]"));
+    assert_invalid(&e, "joint[1].bearings.reaction_point", "axis");
+
+    let e = rejected(&edit_joint(1, "l_a = 0.06, l_b = 0.06", "l_a = 0.0, l_b = 0.0"));
+    assert_invalid_parameter(&e, "joint[1].bearings.l_a + bearings.l_b", 0.0, "positive");
+
+    let e = rejected(&edit_joint(1, "d_c = 0.1", "d_c = -0.1"));
+    assert_invalid_parameter(&e, "joint[1].bearings.d_c", -0.1, "negative");
+}
+
+#[test]
+fn slider_geometry_is_checked() {
+    let e = rejected(&edit_joint(3, "a = 0.2, b", "a = 0.0, b"));
+    assert_invalid_parameter(&e, "joint[3].slider.a", 0.0, "positive");
+
+    let e = rejected(&edit_joint(3, "b = 0.07, c = 0.07", "b = 0.0, c = 0.0"));
+    assert_invalid_parameter(&e, "joint[3].slider.b^2 + slider.c^2", 0.0, "positive");
+
+    let e = rejected(&edit_joint(3, "c = 0.07", "c = -0.07"));
+    assert_invalid_parameter(&e, "joint[3].slider.c", -0.07, "negative");
+}
+
+// ---------------------------------------------------------------------------
+// Numeric ranges
+// ---------------------------------------------------------------------------
+
+#[test]
+fn mass_must_be_positive() {
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = -15.0"));
+    assert_invalid_parameter(&e, "joint[2].link.mass", -15.0, "positive");
+
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = 0.0"));
+    assert_invalid_parameter(&e, "joint[2].link.mass", 0.0, "positive");
+}
+
+#[test]
+fn inertia_must_be_a_physical_tensor() {
+    // Not positive definite.
+    let e = rejected(&edit_joint(1, "zz = 0.79 }", "zz = -0.79 }"));
+    assert_invalid(&e, "joint[1].link.inertia", "positive definite");
+
+    // All positive, but I1 + I2 < I3.
+    let e = rejected(&edit_joint(4, "xx = 0.01, yy = 0.01, zz = 0.01", "xx = 0.01, yy = 0.01, zz = 0.5"));
+    assert_invalid(&e, "joint[4].link.inertia", "triangle inequality");
+
+    // Off-diagonal entries making the tensor indefinite.
+    let e = rejected(&edit_joint(4, "zz = 0.01 }", "zz = 0.01, xy = 0.02 }"));
+    assert_invalid(&e, "joint[4].link.inertia", "positive definite");
+    // A non-symmetric tensor cannot be written: the file has one `xy`, `xz`, `yz` each.
+}
+
+#[test]
+fn drive_parameters_are_checked() {
+    let e = rejected(&edit_joint(3, "k = 1.0e6", "k = 0.0"));
+    assert_invalid_parameter(&e, "joint[3].drive.k", 0.0, "positive");
+
+    let e = rejected(&edit_joint(3, "k = 1.0e6", "k = -1.0e6"));
+    assert_invalid_parameter(&e, "joint[3].drive.k", -1e6, "positive");
+
+    let e = rejected(&edit_joint(1, "h = 0.0", "h = -5.0"));
+    assert_invalid_parameter(&e, "joint[1].drive.h", -5.0, "negative");
+
+    let e = rejected(&edit_joint(3, "clearance = 0.0", "clearance = -0.001"));
+    assert_invalid_parameter(&e, "joint[3].drive.clearance", -0.001, "negative");
+}
+
+#[test]
+fn friction_coefficients_are_checked() {
+    let e = rejected(&edit_joint(1, "mu_k = 0.2", "mu_k = -0.1"));
+    assert_invalid_parameter(&e, "joint[1].friction.mu_k", -0.1, "negative");
+
+    let e = rejected(&edit_joint(3, "mu_k = 0.2, mu_s = 0.2", "mu_k = 0.3, mu_s = 0.2"));
+    assert_invalid_parameter(&e, "joint[3].friction.mu_s", 0.2, "mu_k");
+
+    let e = rejected(&edit_joint(1, "v_s = 0.0", "v_s = -0.01"));
+    assert_invalid_parameter(&e, "joint[1].friction.v_s", -0.01, "negative");
+}
+
+#[test]
+fn nan_and_infinity_are_rejected() {
+    let cases: [(usize, &str, &str, &str, f64); 7] = [
+        (1, "mass = 25.0", "mass = nan", "joint[1].link.mass", f64::NAN),
+        (3, "k = 1.0e6", "k = inf", "joint[3].drive.k", f64::INFINITY),
+        (3, "mu_s = 0.2", "mu_s = nan", "joint[3].friction.mu_s", f64::NAN),
+        (2, "theta = 1.5707963267948966", "theta = -inf", "joint[2].theta", f64::NEG_INFINITY),
+        (4, "com = [0.05, 0.0, -0.05]", "com = [0.05, nan, -0.05]", "joint[4].link.com[2]", f64::NAN),
+        (4, "xx = 0.01", "xx = +inf", "joint[4].link.inertia.xx", f64::INFINITY),
+        (1, "l_b = 0.06", "l_b = nan", "joint[1].bearings.l_b", f64::NAN),
+    ];
+    for (joint, from, to, field, value) in cases {
+        let e = rejected(&edit_joint(joint, from, to));
+        assert_invalid_parameter(&e, field, value, "finite");
+    }
+
+    let e = rejected(&edit("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -inf]"));
+    assert_invalid_parameter(&e, "gravity[3]", f64::NEG_INFINITY, "finite");
+
+    let e = rejected(&edit("h_max = 2e-6", "h_max = nan"));
+    assert_invalid_parameter(&e, "integrator.h_max", f64::NAN, "finite");
+
+    let e = rejected(&edit("beta = 0.25", "beta = nan"));
+    assert_invalid_parameter(&e, "integrator.beta", f64::NAN, "beta");
+}
+
+#[test]
+fn integrator_settings_are_checked() {
+    let e = rejected(&edit("beta = 0.25", "beta = 0.7"));
+    assert_invalid_parameter(&e, "integrator.beta", 0.7, "[0, 0.5]");
+
+    let e = rejected(&edit("gamma = 0.5", "gamma = 0.3"));
+    assert_invalid_parameter(&e, "integrator.gamma", 0.3, "[0.5, 1]");
+
+    let e = rejected(&edit("h_max = 2e-6", "h_max = 0.0"));
+    assert_invalid_parameter(&e, "integrator.h_max", 0.0, "positive");
+
+    let e = rejected(&edit("tolerance = 1e-10", "tolerance = 0.0"));
+    assert_invalid_parameter(&e, "integrator.tolerance", 0.0, "(0, 1e-3]");
+
+    let e = rejected(&edit("max_iterations = 50", "max_iterations = 0"));
+    assert_invalid_parameter(&e, "integrator.max_iterations", 0.0, "1..=10000");
+}
+
+#[test]
+fn missing_file_is_an_io_error_naming_the_path() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/does_not_exist.toml");
+    let e = Model::from_file(path).expect_err("the file does not exist");
+    match &e {
+        ModelError::Io { path: p, reason } => {
+            assert_eq!(p, path);
+            assert!(!reason.is_empty());
+        }
+        other => panic!("expected Io, got {other:?}"),
+    }
+    assert!(e.to_string().contains(path), "message does not name the path: {e}");
+}
+
+// ---------------------------------------------------------------------------
+// set_parameter
+// ---------------------------------------------------------------------------
+
+#[test]
+fn set_parameter_rejects_bad_values_and_leaves_the_model_alone() {
+    let reference = Model::reference_rrpr();
+    let mut model = reference.clone();
+
+    let e = model.set_parameter(Parameter::MuKinetic, 0, -0.1).unwrap_err();
+    assert_invalid_parameter(&e, "mu_k[1]", -0.1, "negative");
+
+    let e = model.set_parameter(Parameter::MuKinetic, 0, f64::NAN).unwrap_err();
+    assert_invalid_parameter(&e, "mu_k[1]", f64::NAN, "finite");
+
+    let e = model.set_parameter(Parameter::Stiffness, 2, 0.0).unwrap_err();
+    assert_invalid_parameter(&e, "k[3]", 0.0, "positive");
+
+    let e = model.set_parameter(Parameter::Stiffness, 2, f64::INFINITY).unwrap_err();
+    assert_invalid_parameter(&e, "k[3]", f64::INFINITY, "finite");
+
+    let e = model.set_parameter(Parameter::Mass, 3, -4.0).unwrap_err();
+    assert_invalid_parameter(&e, "m[4]", -4.0, "positive");
+
+    assert_eq!(model, reference, "a rejected value must not be stored");
+}
+
+#[test]
+fn set_parameter_rejects_parameters_the_joint_does_not_have() {
+    let reference = Model::reference_rrpr();
+    let mut model = reference.clone();
+
+    // Joint 2 has a rigid drive: no stiffness.
+    let e = model.set_parameter(Parameter::Stiffness, 1, 1e5).unwrap_err();
+    assert_invalid(&e, "k[2]", "no such parameter");
+
+    // Joint 1 is revolute: no slider.
+    let e = model.set_parameter(Parameter::SliderA, 0, 0.1).unwrap_err();
+    assert_invalid(&e, "slider_a[1]", "no such parameter");
+
+    // Joint 3 is prismatic: no bearings.
+    let e = model.set_parameter(Parameter::DiameterA, 2, 0.1).unwrap_err();
+    assert_invalid(&e, "d_A[3]", "no such parameter");
+
+    // Joint 4 is frictionless.
+    let e = model.set_parameter(Parameter::MuKinetic, 3, 0.1).unwrap_err();
+    assert_invalid(&e, "mu_k[4]", "no such parameter");
+
+    // There is no joint 5.
+    let e = model.set_parameter(Parameter::Mass, 4, 1.0).unwrap_err();
+    assert_invalid(&e, "m[5]", "the model has 4 joints");
+    // A joint without the parameter is reported as such whatever the value.
+    let e = model.set_parameter(Parameter::Stiffness, 1, -1.0).unwrap_err();
+    assert_invalid(&e, "k[2]", "no such parameter");
+
+    assert_eq!(model, reference);
+}
+
+#[test]
+fn set_parameter_accepts_good_values_and_validate_checks_relations() {
+    let mut model = Model::reference_rrpr();
+
+    model.set_parameter(Parameter::MuKinetic, 0, 0.5).expect("0.5 is a valid mu_k");
+    assert_eq!(model.parameter(Parameter::MuKinetic, 0), Some(0.5));
+
+    // mu_s = 0.2 is now below mu_k = 0.5.
+    let e = model.validate().unwrap_err();
+    assert_invalid_parameter(&e, "joint[1].friction.mu_s", 0.2, "mu_k");
+
+    model.set_parameter(Parameter::MuStatic, 0, 0.6).expect("0.6 is a valid mu_s");
+    model.validate().expect("mu_s >= mu_k again");
+
+    // l_A + l_B = 0 is only caught as a relation.
+    model.set_parameter(Parameter::LengthA, 0, 0.0).unwrap();
+    model.set_parameter(Parameter::LengthB, 0, 0.0).unwrap();
+    let e = model.validate().unwrap_err();
+    assert_invalid_parameter(&e, "joint[1].bearings.l_a + bearings.l_b", 0.0, "positive");
+}
+
+// ---------------------------------------------------------------------------
+// Long chains
+// ---------------------------------------------------------------------------
+
+#[test]
+fn chain_of_24_joints_parses_and_validates() {
+    let text = chain_toml(24);
+    let model = Model::from_toml_str(&text).expect("the 24-joint chain is valid");
+    model.validate().unwrap();
+    assert_eq!(model.nq(), 24);
+    assert_eq!(model.links.len(), 24);
+    let prismatic = model.joints.iter().filter(|j| j.kind == JointKind::Prismatic).count();
+    assert_eq!(prismatic, 12);
+    let flexible = model.joints.iter().filter(|j| j.drive.is_flexible()).count();
+    assert_eq!(flexible, 8);
+    let with_friction = model.joints.iter().filter(|j| j.friction.is_some()).count();
+    assert_eq!(with_friction, 8);
+    assert_eq!(model.links[23].mass, 1.0 + 0.1 * 24.0);
+    assert_eq!(model.integrator.h_max, 1e-5);
+    assert_eq!(model.integrator.beta, 0.25, "unset integrator keys take their defaults");
+
+    // The generator itself is sound: the last joint's error names it.
+    let last = joint_section(&text, 24);
+    let broken = format!("{}{}", &text[..last.start], edit_text(&text[last], "mass = ", "mass = -"));
+    let e = rejected(&broken);
+    assert_invalid_parameter(&e, "joint[24].link.mass", -(1.0 + 0.1 * 24.0), "positive");
+}
