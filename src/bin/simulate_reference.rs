@@ -74,7 +74,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
 
 fn write_header(w: &mut impl Write, n: usize) -> std::io::Result<()> {
     let mut cols = vec!["time".to_string()];
-    for name in ["q", "qd", "qdd", "stick", "F_drive", "F_friction", "N_normal", "eps_joint"] {
+    for name in ["q", "qd", "qdd", "stick", "n_stick", "t_stick", "F_drive", "F_friction", "N_normal", "eps_joint"] {
         cols.extend((1..=n).map(|i| format!("{name}[{i}]")));
     }
     for i in 1..=n {
@@ -97,6 +97,8 @@ fn write_row(w: &mut impl Write, sim: &Simulator) -> std::io::Result<()> {
     v.extend(&s.qd);
     v.extend(&s.qdd);
     v.extend((0..n).map(|i| if s.is_stuck(i) { 1.0 } else { 0.0 }));
+    v.extend(s.stick_count.iter().map(|&c| c as f64));
+    v.extend(&s.stuck_time);
     v.extend(&s.drive_force);
     v.extend(&s.friction_force);
     v.extend(&s.normal_load);

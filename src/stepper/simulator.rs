@@ -200,6 +200,7 @@ impl Simulator {
         let st = &mut self.state;
         st.time = t0;
         st.energy = Default::default();
+        st.stuck_time.fill(0.0);
         for (i, joint) in self.model.joints.iter().enumerate() {
             match joint.drive {
                 Drive::Rigid => {
@@ -221,6 +222,9 @@ impl Simulator {
                 }
             }
             st.qdd[i] = 0.0;
+        }
+        for (count, phase) in st.stick_count.iter_mut().zip(&st.phase) {
+            *count = u64::from(*phase == Phase::Stuck);
         }
         self.clear_transitions();
         self.evaluate()?;

@@ -60,6 +60,11 @@ pub struct State {
     pub reaction_force: Vec<Vec3>,
     /// Joint moment about the reaction reference point, joint frame, N·m.
     pub reaction_moment: Vec<Vec3>,
+    /// Number of stiction phases each joint has entered since initialization
+    /// (a joint that starts stuck counts one).
+    pub stick_count: Vec<u64>,
+    /// Total time each joint has spent stuck since initialization, s.
+    pub stuck_time: Vec<f64>,
     /// Energy account.
     pub energy: Energy,
     /// End point E of the flexible manipulator in frame 0, m.
@@ -124,6 +129,8 @@ impl State {
             margin: vec![f64::INFINITY; n],
             reaction_force: vec![Vec3::zeros(); n],
             reaction_moment: vec![Vec3::zeros(); n],
+            stick_count: vec![0; n],
+            stuck_time: vec![0.0; n],
             energy: Energy::default(),
             end_point: Vec3::zeros(),
             end_point_rigid: Vec3::zeros(),
@@ -169,6 +176,8 @@ impl State {
             self.margin.len(),
             self.reaction_force.len(),
             self.reaction_moment.len(),
+            self.stick_count.len(),
+            self.stuck_time.len(),
         ];
         sizes.iter().all(|&s| s == n)
             && model.joints.iter().zip(&self.phase).all(|(j, p)| match j.drive {

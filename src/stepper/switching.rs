@@ -91,6 +91,9 @@ impl Simulator {
         }
         let e = &mut st.energy;
         for (i, joint) in self.model.joints.iter().enumerate() {
+            if st.phase[i] == Phase::Stuck {
+                st.stuck_time[i] += st.time - s.time;
+            }
             let dq = st.q[i] - s.q[i];
             let drive = 0.5 * (s.drive_force[i] + st.drive_force[i]);
             e.friction_heat += 0.5 * (s.friction_force[i] + st.friction_force[i]) * dq;
@@ -132,6 +135,9 @@ impl Simulator {
             }
         }
         let after = self.state.phase[i];
+        if after == Phase::Stuck && before != Phase::Stuck {
+            self.state.stick_count[i] += 1;
+        }
         self.log_transition(i, before, after);
         Ok(())
     }
