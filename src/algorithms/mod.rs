@@ -1,9 +1,9 @@
 //! The algorithms of the engine, one per file; each has the shape
 //! `algorithm(&model, &mut data, …)` and says where its result lands.
 
-pub mod cholesky;
 pub mod crba;
 pub mod energy;
 pub mod kinematics;
+pub mod lu;
 pub mod lagrange;
 pub mod rnea;

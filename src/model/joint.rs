@@ -75,6 +75,18 @@ impl FrictionCoefficients {
             self.mu_kinetic
         }
     }
+
+    /// dμ/dv of the kinetic characteristic at sliding velocity `v`.
+    #[inline]
+    pub fn kinetic_slope(&self, v: f64) -> f64 {
+        if self.stribeck_velocity > 0.0 && v != 0.0 {
+            -(self.mu_static - self.mu_kinetic) / self.stribeck_velocity
+                * (-v.abs() / self.stribeck_velocity).exp()
+                * v.signum()
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Where the normal loads of a joint come from (study sections 3.1, 3.2).

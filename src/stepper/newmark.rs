@@ -3,9 +3,10 @@
 
 use super::simulator::Simulator;
 use super::state::Phase;
-use crate::algorithms::kinematics::forward_kinematics;
+use crate::algorithms::crba::{crba, motion_subspace};
+use crate::algorithms::kinematics::{forward_kinematics, reaction_point};
+use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reactions, rnea};
-use crate::algorithms::{cholesky, crba::crba};
 use crate::error::StepError;
 use crate::forces::drive::drive_force;
 use crate::forces::friction::contact_load;
@@ -72,9 +73,6 @@ impl Simulator {
             }
         }
         let nf = self.free.len();
-        if nf > 0 {
-            self.factor_iteration_matrix(h, beta, gamma)?;
-        }
         for iteration in 1..=settings.max_iterations {
             for &i in &self.free {
                 let (s, st) = (&self.start, &mut self.state);
@@ -95,7 +93,8 @@ impl Simulator {
             if iteration == settings.max_iterations {
                 return Err(StepError::NotConverged { time: t, iterations: iteration, residual });
             }
-            cholesky::solve(&self.iteration_matrix, nf, &mut self.correction[..nf]);
+            self.factor_newton_matrix(h, beta, gamma)?;
+            lu::solve(&self.iteration_matrix, nf, &self.pivots, &mut self.correction[..nf]);
             for (k, &i) in self.free.iter().enumerate() {
                 self.state.qdd[i] += self.correction[k];
             }
@@ -103,23 +102,51 @@ impl Simulator {
         unreachable!("the loop returns on its last iteration")
     }
 
-    /// Builds and factors M_ff + γh·H_f + βh²·K_f for the free joints.
-    fn factor_iteration_matrix(&mut self, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
+    /// Builds and factors the Newton matrix of the free joints,
+    /// M_ff + γh·H_f + βh²·K_f + ∂F^f/∂q̈: the mass matrix of the sub-step
+    /// start, the drive terms through the Newmark relations, and the friction
+    /// Jacobian. Friction depends on q̈ through the reactions, which are linear
+    /// in q̈: joint j's unit acceleration adds the spatial force I^c_max(s,j)·S_j
+    /// to the reaction of joint s. Without this term the iteration only
+    /// contracts slowly on long chains with much friction.
+    fn factor_newton_matrix(&mut self, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
+        let (model, data, st) = (&self.model, &self.data, &self.state);
         let nf = self.free.len();
-        for (a, &i) in self.free.iter().enumerate() {
+        for (a, &s) in self.free.iter().enumerate() {
             for (b, &j) in self.free.iter().enumerate() {
-                self.iteration_matrix[a * nf + b] = self.data.mass_matrix[(i, j)];
+                self.iteration_matrix[a * nf + b] = data.mass_matrix[(s, j)];
             }
-            if let Drive::Flexible { stiffness, damping, clearance } = self.model.joints[i].drive {
-                if (self.start.q_star[i] - self.start.q[i]).abs() >= clearance {
+            let joint = &model.joints[s];
+            if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
+                if (st.q_star[s] - st.q[s]).abs() >= clearance {
                     self.iteration_matrix[a * nf + a] += gamma * h * damping + beta * h * h * stiffness;
                 }
             }
+            let (Some(friction), Phase::Slipping(d)) = (joint.friction, st.phase[s]) else { continue };
+            let d = d as f64;
+            let c = friction.coefficients;
+            self.iteration_matrix[a * nf + a] += d * st.lever_load[s] * c.kinetic_slope(st.qd[s]) * gamma * h;
+            let mu = c.kinetic(st.qd[s]);
+            if mu == 0.0 {
+                continue;
+            }
+            let (f0, n0) = (data.reaction_force[s], data.reaction_moment[s]);
+            let rt = data.joint_rotation[s].transpose();
+            let p = reaction_point(model, data, s);
+            let size = f0.norm() + n0.norm();
+            for (b, &j) in self.free.iter().enumerate() {
+                let w = data.composite[s.max(j)] * motion_subspace(model, data, j);
+                let f = rt * w.fixed_rows::<3>(3);
+                let n = rt * (w.fixed_rows::<3>(0) - p.cross(&w.fixed_rows::<3>(3)));
+                let step = 1e-7 * size.max(1e-9) / (f.norm() + n.norm()).max(1e-300);
+                let shifted = contact_load(&friction.geometry, &(f0 + f * step), &(n0 + n * step)).lever_load;
+                self.iteration_matrix[a * nf + b] += d * mu * (shifted - st.lever_load[s]) / step;
+            }
         }
-        if cholesky::factor(&mut self.iteration_matrix[..nf * nf], nf) {
+        if lu::factor(&mut self.iteration_matrix[..nf * nf], nf, &mut self.pivots[..nf]) {
             Ok(())
         } else {
-            Err(StepError::SingularMassMatrix { time: self.start.time + h })
+            Err(StepError::SingularMassMatrix { time: st.time })
         }
     }
 

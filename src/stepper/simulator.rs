@@ -54,8 +54,10 @@ pub struct Simulator {
     pub(crate) inputs: InputPolynomial,
     /// Indices of the joints with an equation of motion in this sub-step.
     pub(crate) free: Vec<usize>,
-    /// Newmark iteration matrix of the free joints, row-major, factored in place.
+    /// Newton matrix of the free joints, row-major, LU-factored in place.
     pub(crate) iteration_matrix: Vec<f64>,
+    /// Row exchanges of its factorization.
+    pub(crate) pivots: Vec<usize>,
     /// Residuals, then corrections, of the free joints.
     pub(crate) correction: Vec<f64>,
     /// Scratch joint vector.
@@ -83,6 +85,7 @@ impl Simulator {
             inputs: InputPolynomial::new(n),
             free: Vec::with_capacity(n),
             iteration_matrix: vec![0.0; n * n],
+            pivots: vec![0; n],
             correction: vec![0.0; n],
             scratch: vec![0.0; n],
             decided: vec![false; n],

@@ -1,0 +1,125 @@
+//! A step the engine cannot take is an error, and the state stays as it was.
+//!
+//! NaN or infinite inputs, inputs of the wrong length, a non-positive
+//! interval, stepping before initialization, a parameter change that leaves
+//! the model inconsistent, and a Newmark iteration that does not converge each
+//! return their error; the state afterwards equals the state before, so the
+//! caller can retry with other inputs or a shorter interval. Long chains (24
+//! joints) step and keep their energy account.
+
+mod common;
+
+use stick_slip_manipulator::model::Parameter;
+use stick_slip_manipulator::{DriveInputs, Model, Simulator, StepError};
+
+const Q: [f64; 4] = [0.1, 0.2, 0.9, 0.3];
+const V: [f64; 4] = [0.5, 0.1, 0.2, 0.3];
+const A: [f64; 4] = [0.0; 4];
+
+fn running_reference() -> Simulator {
+    let mut sim = Simulator::new(Model::reference_rrpr()).unwrap();
+    sim.initialize(0.0, &DriveInputs { q_star: &Q, qd_star: &A, qdd_star: &A }, None).unwrap();
+    for _ in 0..20 {
+        sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap();
+    }
+    sim
+}
+
+#[test]
+fn bad_inputs_are_rejected_and_change_nothing() {
+    let mut sim = running_reference();
+    let before = sim.state().clone();
+    let mut bad = Q;
+    bad[2] = f64::NAN;
+    let e = sim.advance(&DriveInputs { q_star: &bad, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
+    assert!(matches!(e, StepError::NonFiniteInput { field: "q_star", joint: 3, .. }), "{e}");
+    assert!(e.to_string().contains("q_star[3]"));
+    let mut bad = V;
+    bad[0] = f64::INFINITY;
+    let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &bad, qdd_star: &A }, 1e-3).unwrap_err();
+    assert!(matches!(e, StepError::NonFiniteInput { field: "qd_star", joint: 1, .. }), "{e}");
+    let e = sim.advance(&DriveInputs { q_star: &Q[..3], qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
+    assert_eq!(e, StepError::InputLength { field: "q_star", expected: 4, got: 3 });
+    for interval in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+        let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, interval).unwrap_err();
+        assert!(matches!(e, StepError::InvalidInterval { .. }), "{e}");
+    }
+    assert_eq!(sim.state(), &before);
+    sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap();
+}
+
+#[test]
+fn stepping_before_initialization_is_an_error() {
+    let mut sim = Simulator::new(Model::reference_rrpr()).unwrap();
+    let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
+    assert_eq!(e, StepError::NotInitialized);
+}
+
+#[test]
+fn inconsistent_parameters_surface_at_the_next_step() {
+    let mut sim = running_reference();
+    let before = sim.state().clone();
+    sim.set_parameter(Parameter::MuKinetic, 2, 0.5).unwrap();
+    let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
+    assert!(matches!(e, StepError::InvalidModel { .. }), "{e}");
+    assert!(e.to_string().contains("joint[3].friction.mu_s"), "{e}");
+    assert_eq!(sim.state(), &before);
+    sim.set_parameter(Parameter::MuStatic, 2, 0.5).unwrap();
+    sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap();
+}
+
+#[test]
+fn a_newmark_iteration_that_does_not_converge_is_reported() {
+    let mut model = Model::reference_rrpr();
+    model.integrator.max_iterations = 1;
+    let mut sim = Simulator::new(model).unwrap();
+    sim.initialize(0.0, &DriveInputs { q_star: &Q, qd_star: &A, qdd_star: &A }, None).unwrap();
+    let before = sim.state().clone();
+    let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
+    assert!(matches!(e, StepError::NotConverged { iterations: 1, .. }), "{e}");
+    assert_eq!(sim.state(), &before, "state restored to the start of the interval");
+}
+
+#[test]
+fn a_state_can_be_restored_for_an_exact_continuation() {
+    let mut sim = running_reference();
+    let saved = sim.state().clone();
+    let step = |sim: &mut Simulator| {
+        for _ in 0..10 {
+            sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap();
+        }
+        sim.state().clone()
+    };
+    let first = step(&mut sim);
+    sim.set_state(&saved).unwrap();
+    assert_eq!(step(&mut sim), first);
+    let mut other = Simulator::new(Model::reference_rrpr()).unwrap();
+    other.set_state(&saved).unwrap();
+    assert_eq!(step(&mut other), first, "another simulator continues identically");
+    let small = Simulator::new(common::random_chain(2, 1)).unwrap();
+    assert!(Simulator::new(Model::reference_rrpr()).unwrap().set_state(small.state()).is_err());
+}
+
+#[test]
+fn a_chain_of_24_joints_steps_and_balances_energy() {
+    let model = common::random_chain(24, 24);
+    let n = model.nq();
+    let mut sim = Simulator::new(model).unwrap();
+    let mut rng = common::Rng::new(3);
+    let q: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+    let v: Vec<f64> = (0..n).map(|_| rng.range(-0.2, 0.2)).collect();
+    let zero = vec![0.0; n];
+    sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &zero, qdd_star: &zero }, None).unwrap();
+    let b0 = sim.state().energy.balance();
+    let mut q_now = q.clone();
+    for k in 0..10 {
+        for i in 0..n {
+            q_now[i] = q[i] + v[i] * k as f64 * 1e-3;
+        }
+        sim.advance(&DriveInputs { q_star: &q_now, qd_star: &v, qdd_star: &zero }, 1e-3).unwrap();
+    }
+    let e = sim.state().energy;
+    assert!(e.drive_work.abs() > 0.0);
+    let residual = (e.balance() - b0).abs();
+    assert!(residual < 1e-6 * (e.drive_work.abs() + e.friction_heat + e.kinetic), "energy residual {residual} J");
+}
