@@ -164,6 +164,8 @@ impl Simulator {
             let (normal, lever) = load.map_or((0.0, 0.0), |l| (l.normal, l.lever_load));
             st.normal_load[i] = normal;
             st.lever_load[i] = lever;
+            st.reaction_force[i] = data.reaction_force[i];
+            st.reaction_moment[i] = data.reaction_moment[i];
             let coefficients = joint.friction.map(|f| f.coefficients);
             match joint.drive {
                 Drive::Rigid => {
