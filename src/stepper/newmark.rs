@@ -22,7 +22,7 @@ impl Simulator {
     /// advancing (a zero-length sub-step): used at initialization, at the start
     /// of an interval and after a phase change.
     pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
-        self.start.clone_from(&self.state);
+        self.start.copy_from(&self.state);
         self.prepare_iteration_matrix();
         self.solve(self.state.time)
     }

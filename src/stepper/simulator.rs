@@ -124,7 +124,7 @@ impl Simulator {
         if !state.fits(&self.model) {
             return Err(ModelError::Invalid { field: "state".into(), reason: "does not fit this model".into() });
         }
-        self.state.clone_from(state);
+        self.state.copy_from(state);
         self.initialized = true;
         Ok(())
     }
@@ -253,11 +253,11 @@ impl Simulator {
             return Err(StepError::NotInitialized);
         }
         self.check_model()?;
-        self.saved.clone_from(&self.state);
+        self.saved.copy_from(&self.state);
         self.iterations = 0;
         let result = self.advance_inner(inputs, interval);
         if result.is_err() {
-            self.state.clone_from(&self.saved);
+            self.state.copy_from(&self.saved);
         }
         result
     }

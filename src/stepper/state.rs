@@ -137,6 +137,53 @@ impl State {
         }
     }
 
+    /// Copies `other` into `self` without allocating (both must have the same
+    /// number of joints; the derived `clone_from` would allocate every vector).
+    pub fn copy_from(&mut self, other: &State) {
+        let State {
+            time,
+            q,
+            qd,
+            qdd,
+            phase,
+            q_star,
+            qd_star,
+            drive_force,
+            damping_force,
+            friction_force,
+            normal_load,
+            lever_load,
+            margin,
+            reaction_force,
+            reaction_moment,
+            stick_count,
+            stuck_time,
+            energy,
+            end_point,
+            end_point_rigid,
+        } = other;
+        self.time = *time;
+        self.q.copy_from_slice(q);
+        self.qd.copy_from_slice(qd);
+        self.qdd.copy_from_slice(qdd);
+        self.phase.copy_from_slice(phase);
+        self.q_star.copy_from_slice(q_star);
+        self.qd_star.copy_from_slice(qd_star);
+        self.drive_force.copy_from_slice(drive_force);
+        self.damping_force.copy_from_slice(damping_force);
+        self.friction_force.copy_from_slice(friction_force);
+        self.normal_load.copy_from_slice(normal_load);
+        self.lever_load.copy_from_slice(lever_load);
+        self.margin.copy_from_slice(margin);
+        self.reaction_force.copy_from_slice(reaction_force);
+        self.reaction_moment.copy_from_slice(reaction_moment);
+        self.stick_count.copy_from_slice(stick_count);
+        self.stuck_time.copy_from_slice(stuck_time);
+        self.energy = *energy;
+        self.end_point = *end_point;
+        self.end_point_rigid = *end_point_rigid;
+    }
+
     /// Number of joints.
     pub fn nq(&self) -> usize {
         self.q.len()

@@ -22,7 +22,7 @@ impl Simulator {
         // marginal slip) is tried again at this one.
         self.decided.fill(false);
         self.settle_phases()?;
-        self.start.clone_from(&self.state);
+        self.start.copy_from(&self.state);
         self.prepare_iteration_matrix();
         self.solve(t_target)?;
         let Some(joint) = self.earliest_crossing() else {
