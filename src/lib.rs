@@ -4,6 +4,7 @@
 pub mod algorithms;
 pub mod data;
 pub mod error;
+pub mod fmi;
 pub mod forces;
 pub mod math;
 pub mod model;

@@ -1,0 +1,78 @@
+//! Packs an FMI 2.0 co-simulation FMU from a model file.
+//!
+//! Usage: package_fmu [--model FILE] [--lib FILE] [--out FILE]
+//!
+//! * `--model`: the model file (TOML) the FMU runs; default: the reference
+//!   manipulator, `models/reference_rrpr.toml` as compiled into the crate.
+//! * `--lib`: the release cdylib; default `libstick_slip_manipulator.so`
+//!   next to this executable (`cargo build --release` puts both there).
+//! * `--out`: the `.fmu`; default `<target>/fmu/StickSlipManipulator.fmu`,
+//!   `<target>` being the directory above this executable's.
+//!
+//! The FMU holds `modelDescription.xml` (written for the model by the same
+//! code as `build.rs` uses), `binaries/linux64/StickSlipManipulator.so` and
+//! `resources/model.toml` (the model file as given, which the FMU reads at
+//! fmi2Instantiate and whose text the GUID is derived from).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use stick_slip_manipulator::fmi::description::{model_description_xml, MODEL_IDENTIFIER};
+use stick_slip_manipulator::model::REFERENCE_RRPR_TOML;
+use stick_slip_manipulator::Model;
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, DateTime, ZipWriter};
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("package_fmu: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
+    let exe_dir = std::env::current_exe()?.parent().map(Path::to_path_buf).ok_or("no directory of the executable")?;
+    let mut model_path: Option<PathBuf> = None;
+    let mut lib = exe_dir.join("libstick_slip_manipulator.so");
+    let mut out = exe_dir.parent().unwrap_or(&exe_dir).join("fmu").join(format!("{MODEL_IDENTIFIER}.fmu"));
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().map(PathBuf::from).ok_or_else(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--model" => model_path = Some(value()?),
+            "--lib" => lib = value()?,
+            "--out" => out = value()?,
+            "-h" | "--help" => {
+                println!("usage: package_fmu [--model FILE] [--lib FILE] [--out FILE]");
+                return Ok(());
+            }
+            _ => return Err(format!("unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--out FILE])").into()),
+        }
+    }
+    let text = match &model_path {
+        Some(p) => std::fs::read_to_string(p).map_err(|e| format!("cannot read {}: {e}", p.display()))?,
+        None => REFERENCE_RRPR_TOML.to_string(),
+    };
+    let model = Model::from_toml_str(&text)
+        .map_err(|e| format!("{}: {e}", model_path.as_deref().unwrap_or(Path::new("reference model")).display()))?;
+    let binary = std::fs::read(&lib).map_err(|e| format!("cannot read the library {}: {e} (run `cargo build --release` first)", lib.display()))?;
+    let xml = model_description_xml(&model, &text);
+
+    if let Some(dir) = out.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    // Written next to the target and renamed, so that a reader never sees half an FMU.
+    let partial = out.with_extension("fmu.part");
+    let mut zip = ZipWriter::new(std::fs::File::create(&partial)?);
+    // Fixed time stamps: the same inputs give the same bytes.
+    let options = SimpleFileOptions::default().compression_method(CompressionMethod::Deflated).last_modified_time(DateTime::default());
+    zip.start_file("modelDescription.xml", options)?;
+    zip.write_all(xml.as_bytes())?;
+    zip.start_file(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), options.unix_permissions(0o755))?;
+    zip.write_all(&binary)?;
+    zip.start_file("resources/model.toml", options)?;
+    zip.write_all(text.as_bytes())?;
+    zip.finish()?;
+    std::fs::rename(&partial, &out)?;
+    eprintln!("package_fmu: wrote {} (model `{}`, {} joints)", out.display(), model.name, model.nq());
+    Ok(())
+}

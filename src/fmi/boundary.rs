@@ -1,0 +1,217 @@
+//! The C boundary: opaque handles, checked pointer helpers, and the one
+//! wrapper every exported function body runs in. A panic never crosses into
+//! C (since Rust 1.81 it would abort the master): it becomes fmi2Error and
+//! puts the instance in the error state.
+
+use super::instance::Instance;
+use super::lifecycle::States;
+use super::logger::Category;
+use super::status::{Fault, Outcome, Status};
+use fmi_sys::fmi2::{fmi2Component, fmi2FMUstate, fmi2Status};
+use std::ffi::{c_char, CStr};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+const INSTANCE_MAGIC: u64 = u64::from_le_bytes(*b"SSMinst\0");
+const STATE_MAGIC: u64 = u64::from_le_bytes(*b"SSMstat\0");
+
+/// What an `fmi2Component` points to. The magic number (first field) tells
+/// an instance from other pointers a confused master may pass.
+#[repr(C)]
+struct InstanceHandle {
+    magic: u64,
+    instance: Instance,
+}
+
+/// What an `fmi2FMUstate` points to: the serialized state.
+#[repr(C)]
+pub(crate) struct StateHandle {
+    magic: u64,
+    pub(crate) bytes: Vec<u8>,
+}
+
+/// Runs `f`; a panic becomes `fallback`.
+pub(crate) fn guard<T>(fallback: T, f: impl FnOnce() -> T) -> T {
+    catch_unwind(AssertUnwindSafe(f)).unwrap_or(fallback)
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("panic")
+}
+
+/// Hands `instance` to C.
+pub(crate) fn into_component(instance: Instance) -> fmi2Component {
+    Box::into_raw(Box::new(InstanceHandle { magic: INSTANCE_MAGIC, instance })).cast()
+}
+
+/// Reads the magic number at `p` if `p` can hold one.
+///
+/// # Safety
+/// `p` is null or points to at least 8 readable bytes.
+unsafe fn magic_at<T>(p: *const T) -> Option<u64> {
+    let p = p.cast::<u64>();
+    // SAFETY: non-null and aligned; readable by the caller's contract.
+    (!p.is_null() && p.is_aligned()).then(|| unsafe { p.read() })
+}
+
+/// The instance behind `c`, if `c` is one.
+///
+/// # Safety
+/// `c` is null or a pointer the master got from fmi2Instantiate and has not
+/// freed (anything else that is readable is recognized by its magic number).
+unsafe fn handle<'a>(c: fmi2Component) -> Option<&'a mut InstanceHandle> {
+    let h = c.cast::<InstanceHandle>();
+    // SAFETY: the magic number says `h` is a live handle made by into_component.
+    (unsafe { magic_at(h) } == Some(INSTANCE_MAGIC)).then(|| unsafe { &mut *h })
+}
+
+/// fmi2FreeInstance: frees the instance behind `c`; null is accepted.
+///
+/// # Safety
+/// As for [`handle`]; `c` is not used again.
+pub(crate) unsafe fn free_component(c: fmi2Component) {
+    // SAFETY: see the function's contract.
+    if let Some(h) = unsafe { handle(c) } {
+        h.magic = 0;
+        // SAFETY: `h` came from Box::into_raw in into_component.
+        drop(unsafe { Box::from_raw(std::ptr::from_mut(h)) });
+    }
+}
+
+/// Runs `body` on the instance behind `c` if the instance's state is in
+/// `allowed` ("illegal call sequence" otherwise), logs a failure as
+/// "`function`: message" in the category of its status, and turns a panic
+/// into fmi2Error and the error state.
+///
+/// # Safety
+/// As for [`handle`].
+pub(crate) unsafe fn with_instance(
+    c: fmi2Component,
+    function: &'static str,
+    allowed: States,
+    body: impl FnOnce(&mut Instance) -> Outcome,
+) -> fmi2Status {
+    // SAFETY: see the function's contract. Without an instance there is no
+    // logger to tell.
+    let Some(handle) = (unsafe { handle(c) }) else { return Status::Error.to_fmi() };
+    let instance = &mut handle.instance;
+    let run = catch_unwind(AssertUnwindSafe(|| match instance.check_state(allowed).and_then(|()| body(instance)) {
+        Ok(status) => status,
+        Err(fault) => {
+            let message = format!("{function}: {}", fault.message);
+            instance.logger.log(fault.status, Category::of_status(fault.status), &message);
+            fault.status
+        }
+    }));
+    match run {
+        Ok(status) => status.to_fmi(),
+        Err(payload) => {
+            let reason = panic_message(payload.as_ref());
+            guard((), || instance.fail(function, reason));
+            Status::Error.to_fmi()
+        }
+    }
+}
+
+/// Hands an FMU state to C.
+pub(crate) fn into_state(bytes: Vec<u8>) -> fmi2FMUstate {
+    Box::into_raw(Box::new(StateHandle { magic: STATE_MAGIC, bytes })).cast()
+}
+
+/// The FMU state behind `s`.
+///
+/// # Safety
+/// `s` is null or a pointer from fmi2GetFMUstate / fmi2DeSerializeFMUstate
+/// that was not freed.
+pub(crate) unsafe fn state<'a>(s: fmi2FMUstate) -> Result<&'a mut StateHandle, Fault> {
+    let h = s.cast::<StateHandle>();
+    // SAFETY: see the function's contract; the magic number says `h` is a
+    // live handle made by into_state.
+    match unsafe { magic_at(h) } {
+        Some(STATE_MAGIC) => Ok(unsafe { &mut *h }),
+        None => Err(Fault::error("the FMU state is NULL")),
+        Some(_) => Err(Fault::error("the pointer is not an FMU state of this FMU")),
+    }
+}
+
+/// Frees the FMU state behind `s` and nulls the master's pointer.
+///
+/// # Safety
+/// As for [`state`].
+pub(crate) unsafe fn free_state(s: &mut fmi2FMUstate) -> Result<(), Fault> {
+    if s.is_null() {
+        return Ok(());
+    }
+    // SAFETY: see the function's contract.
+    let h = unsafe { state(*s) }?;
+    h.magic = 0;
+    // SAFETY: `h` came from Box::into_raw in into_state.
+    drop(unsafe { Box::from_raw(std::ptr::from_mut(h)) });
+    *s = std::ptr::null_mut();
+    Ok(())
+}
+
+fn check_pointer<T>(p: *const T, len: usize, what: &str) -> Result<(), Fault> {
+    if p.is_null() {
+        return Err(Fault::error(format!("`{what}` is NULL but has {len} elements")));
+    }
+    if !p.is_aligned() {
+        return Err(Fault::error(format!("`{what}` is not aligned for its type")));
+    }
+    if len.checked_mul(size_of::<T>()).is_none_or(|bytes| bytes > isize::MAX as usize) {
+        return Err(Fault::error(format!("`{what}` cannot have {len} elements")));
+    }
+    Ok(())
+}
+
+/// The array `p[0..len]`; with `len` = 0 the pointer is not looked at.
+///
+/// # Safety
+/// `p` is null or points to `len` initialized elements that nothing writes
+/// during the call.
+pub(crate) unsafe fn slice<'a, T>(p: *const T, len: usize, what: &str) -> Result<&'a [T], Fault> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    check_pointer(p, len, what)?;
+    // SAFETY: checked non-null, aligned, size in range; valid by contract.
+    Ok(unsafe { std::slice::from_raw_parts(p, len) })
+}
+
+/// The writable array `p[0..len]`; with `len` = 0 the pointer is not looked at.
+///
+/// # Safety
+/// `p` is null or points to `len` writable elements nothing else accesses
+/// during the call.
+pub(crate) unsafe fn slice_mut<'a, T>(p: *mut T, len: usize, what: &str) -> Result<&'a mut [T], Fault> {
+    if len == 0 {
+        return Ok(&mut []);
+    }
+    check_pointer(p, len, what)?;
+    // SAFETY: checked non-null, aligned, size in range; valid by contract.
+    Ok(unsafe { std::slice::from_raw_parts_mut(p, len) })
+}
+
+/// The output argument `*p`.
+///
+/// # Safety
+/// As for [`slice_mut`] with one element.
+pub(crate) unsafe fn out<'a, T>(p: *mut T, what: &str) -> Result<&'a mut T, Fault> {
+    // SAFETY: see the function's contract.
+    Ok(&mut unsafe { slice_mut(p, 1, what) }?[0])
+}
+
+/// The NUL-terminated UTF-8 string at `p`.
+///
+/// # Safety
+/// `p` is null or points to a NUL-terminated string.
+pub(crate) unsafe fn text<'a>(p: *const c_char, what: &str) -> Result<&'a str, Fault> {
+    if p.is_null() {
+        return Err(Fault::error(format!("`{what}` is NULL")));
+    }
+    // SAFETY: non-null and NUL-terminated by contract.
+    unsafe { CStr::from_ptr(p) }.to_str().map_err(|_| Fault::error(format!("`{what}` is not UTF-8")))
+}

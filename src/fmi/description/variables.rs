@@ -1,0 +1,531 @@
+//! The variables of the FMU for a given model, with their value references.
+//!
+//! Value references are the positions in the list (0, 1, 2, …), so the
+//! modelDescription index of a variable is its value reference + 1. The list
+//! is, in this order (n joints, structured names with 1-based indices):
+//!
+//! 1. inputs `q_star[i]`, `qd_star[i]`, `qdd_star[i]`, i = 1…n;
+//! 2. outputs `q[i]`, `qd[i]`, `qdd[i]`, `stick[i]`, `F_drive[i]`,
+//!    `F_friction[i]`, `N_normal[i]`, `f[i,1…3]`, `n[i,1…3]`, `eps_joint[i]`,
+//!    then `eps`, `x_E[1…3]`, `E_kin`, `E_pot`, `E_spring`, `W_drive`,
+//!    `Q_friction`, `Q_damping`;
+//! 3. tunable parameters, one block per [`Parameter`] in [`Parameter::ALL`]
+//!    order, each over the joints that have it (`Model::has_parameter`);
+//! 4. start values `use_start_values`, `q_start[i]`, `qd_start[i]` (flexible
+//!    joints only);
+//! 5. fixed integrator settings `h_max`, `newmark_beta`, `newmark_gamma`,
+//!    `tolerance`.
+
+use super::hash::Fnv1a128;
+use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter};
+
+/// Causality of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Causality {
+    /// Set by the master before initialization (fixed) or between steps (tunable).
+    Parameter,
+    /// Set by the master between steps.
+    Input,
+    /// Computed by the FMU.
+    Output,
+}
+
+/// Variability of a variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variability {
+    /// Set before initialization only.
+    Fixed,
+    /// May change between steps.
+    Tunable,
+    /// Changes at communication points only.
+    Discrete,
+    /// Changes continuously in time.
+    Continuous,
+}
+
+/// The `initial` attribute (not written for inputs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Initial {
+    /// The start value is the value.
+    Exact,
+    /// Computed during initialization.
+    Calculated,
+}
+
+/// Type, unit, bounds and start value of a variable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Type {
+    /// An `fmi2Real`.
+    Real {
+        /// Unit name from [`super::UNITS`], none for dimensionless numbers.
+        unit: Option<&'static str>,
+        /// Smallest admissible value.
+        min: Option<f64>,
+        /// Largest admissible value.
+        max: Option<f64>,
+        /// Start value (parameters and inputs).
+        start: Option<f64>,
+    },
+    /// An `fmi2Boolean`.
+    Boolean {
+        /// Start value (parameters).
+        start: Option<bool>,
+    },
+}
+
+/// Which drive input an input variable is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputField {
+    /// q*, or the prescribed q of a rigid joint.
+    QStar,
+    /// q̇*.
+    QdStar,
+    /// q̈*.
+    QddStar,
+}
+
+/// A fixed setting of the stepper.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Setting {
+    /// Largest internal sub-step h_max, s.
+    HMax,
+    /// Newmark β.
+    NewmarkBeta,
+    /// Newmark γ.
+    NewmarkGamma,
+    /// Relative tolerance of the Newmark iteration.
+    Tolerance,
+}
+
+impl Setting {
+    /// Every setting, in layout order.
+    pub const ALL: [Setting; 4] = [Setting::HMax, Setting::NewmarkBeta, Setting::NewmarkGamma, Setting::Tolerance];
+
+    /// Variable name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Setting::HMax => "h_max",
+            Setting::NewmarkBeta => "newmark_beta",
+            Setting::NewmarkGamma => "newmark_gamma",
+            Setting::Tolerance => "tolerance",
+        }
+    }
+
+    /// The value in `s`.
+    pub fn get(self, s: &IntegratorSettings) -> f64 {
+        match self {
+            Setting::HMax => s.h_max,
+            Setting::NewmarkBeta => s.beta,
+            Setting::NewmarkGamma => s.gamma,
+            Setting::Tolerance => s.tolerance,
+        }
+    }
+
+    /// Stores `value` in `s` (check it with [`Setting::check`] first).
+    pub fn set(self, s: &mut IntegratorSettings, value: f64) {
+        match self {
+            Setting::HMax => s.h_max = value,
+            Setting::NewmarkBeta => s.beta = value,
+            Setting::NewmarkGamma => s.gamma = value,
+            Setting::Tolerance => s.tolerance = value,
+        }
+    }
+
+    /// (min, max, whether min itself is excluded): the ranges of
+    /// `Model::validate`, declared in the modelDescription and checked at
+    /// fmi2SetReal so that a bad value is rejected by the call that sets it.
+    fn bounds(self) -> (f64, Option<f64>, bool) {
+        match self {
+            Setting::HMax => (0.0, None, true),
+            Setting::NewmarkBeta => (0.0, Some(0.5), false),
+            Setting::NewmarkGamma => (0.5, Some(1.0), false),
+            Setting::Tolerance => (0.0, Some(1e-3), true),
+        }
+    }
+
+    /// Checks `value` against the setting's range.
+    pub fn check(self, value: f64) -> Result<(), String> {
+        let (min, max, exclusive) = self.bounds();
+        let above = if exclusive { value > min } else { value >= min };
+        let below = max.is_none_or(|m| value <= m);
+        if value.is_finite() && above && below {
+            return Ok(());
+        }
+        let low = if exclusive { format!("({min}") } else { format!("[{min}") };
+        let high = max.map_or("inf)".to_string(), |m| format!("{m}]"));
+        Err(format!("`{}` = {value} is out of its range {low}, {high}", self.name()))
+    }
+}
+
+/// An output of the FMU (0-based joint `j`, 0-based component `k`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Output {
+    /// Joint coordinate q.
+    Q(usize),
+    /// Joint velocity q̇.
+    Qd(usize),
+    /// Joint acceleration q̈.
+    Qdd(usize),
+    /// True while the joint sticks.
+    Stick(usize),
+    /// Drive force F^d.
+    DriveForce(usize),
+    /// Friction force F^f.
+    FrictionForce(usize),
+    /// Normal load of the contact.
+    NormalLoad(usize),
+    /// Joint reaction force, joint frame.
+    ReactionForce(usize, usize),
+    /// Joint reaction moment, joint frame.
+    ReactionMoment(usize, usize),
+    /// ε_i = q*_i − q_i.
+    JointError(usize),
+    /// End point error ε (4.1).
+    EndPointError,
+    /// End point x_E in frame 0.
+    EndPoint(usize),
+    /// Kinetic energy.
+    KineticEnergy,
+    /// Potential energy of gravity.
+    PotentialEnergy,
+    /// Spring energy of the drives.
+    SpringEnergy,
+    /// Work of the drives.
+    DriveWork,
+    /// Friction heat.
+    FrictionHeat,
+    /// Damping heat.
+    DampingHeat,
+}
+
+/// What a variable stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// A drive input of joint `.1` (0-based).
+    Input(InputField, usize),
+    /// An output.
+    Output(Output),
+    /// A tunable model parameter of joint `.1` (0-based).
+    Parameter(Parameter, usize),
+    /// A fixed stepper setting.
+    Setting(Setting),
+    /// Start from `q_start`, `qd_start` instead of q = q*, at rest.
+    UseStartValues,
+    /// Start coordinate of flexible joint `.0` (0-based).
+    StartQ(usize),
+    /// Start velocity of flexible joint `.0` (0-based).
+    StartQd(usize),
+}
+
+/// One scalar variable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variable {
+    /// Structured name, e.g. `f[2,3]`.
+    pub name: String,
+    /// Value reference (= position in the list).
+    pub value_reference: u32,
+    /// What it is, with symbol, unit and equation of the study.
+    pub description: String,
+    /// Causality.
+    pub causality: Causality,
+    /// Variability.
+    pub variability: Variability,
+    /// `initial` attribute; `None` for inputs.
+    pub initial: Option<Initial>,
+    /// Type, unit, bounds, start.
+    pub ty: Type,
+    /// What it maps to.
+    pub quantity: Quantity,
+}
+
+/// Units of the joint-space quantities of a joint kind.
+struct JointUnits {
+    coordinate: &'static str,
+    rate: &'static str,
+    acceleration: &'static str,
+    force: &'static str,
+    stiffness: &'static str,
+    damping: &'static str,
+}
+
+fn joint_units(kind: JointKind) -> JointUnits {
+    match kind {
+        JointKind::Revolute => JointUnits {
+            coordinate: "rad",
+            rate: "rad/s",
+            acceleration: "rad/s2",
+            force: "N.m",
+            stiffness: "N.m/rad",
+            damping: "N.m.s/rad",
+        },
+        JointKind::Prismatic => JointUnits {
+            coordinate: "m",
+            rate: "m/s",
+            acceleration: "m/s2",
+            force: "N",
+            stiffness: "N/m",
+            damping: "N.s/m",
+        },
+    }
+}
+
+/// Collects variables, numbering them as they come.
+#[derive(Default)]
+struct Builder(Vec<Variable>);
+
+impl Builder {
+    fn push(&mut self, name: String, description: String, kind: (Causality, Variability), ty: Type, quantity: Quantity) {
+        let (causality, variability) = kind;
+        let initial = match causality {
+            Causality::Input => None,
+            Causality::Parameter => Some(Initial::Exact),
+            Causality::Output => Some(Initial::Calculated),
+        };
+        let value_reference = self.0.len() as u32;
+        self.0.push(Variable { name, value_reference, description, causality, variability, initial, ty, quantity });
+    }
+}
+
+const INPUT: (Causality, Variability) = (Causality::Input, Variability::Continuous);
+const OUTPUT: (Causality, Variability) = (Causality::Output, Variability::Continuous);
+const TUNABLE: (Causality, Variability) = (Causality::Parameter, Variability::Tunable);
+const FIXED: (Causality, Variability) = (Causality::Parameter, Variability::Fixed);
+
+fn real(unit: &'static str) -> Type {
+    Type::Real { unit: Some(unit), min: None, max: None, start: None }
+}
+
+fn real_start(unit: Option<&'static str>, start: f64) -> Type {
+    Type::Real { unit, min: None, max: None, start: Some(start) }
+}
+
+/// The variables of `model`, value reference = position.
+pub fn variables(model: &Model) -> Vec<Variable> {
+    let mut b = Builder::default();
+    inputs(&mut b, model);
+    outputs(&mut b, model);
+    parameters(&mut b, model);
+    start_values(&mut b, model);
+    for s in Setting::ALL {
+        let (min, max, _) = s.bounds();
+        let (unit, what) = match s {
+            Setting::HMax => (Some("s"), "Largest internal sub-step h_max of the Newmark stepper"),
+            Setting::NewmarkBeta => (None, "Newmark beta (1/4: average acceleration)"),
+            Setting::NewmarkGamma => (None, "Newmark gamma"),
+            Setting::Tolerance => (None, "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces"),
+        };
+        let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };
+        b.push(s.name().into(), format!("{what}; fixed after initialization"), FIXED, ty, Quantity::Setting(s));
+    }
+    b.0
+}
+
+/// "joint 3 (prismatic, flexible drive)".
+fn joint_label(model: &Model, j: usize) -> String {
+    let joint = &model.joints[j];
+    let kind = match joint.kind {
+        JointKind::Revolute => "revolute",
+        JointKind::Prismatic => "prismatic",
+    };
+    let drive = if joint.drive.is_flexible() { "flexible" } else { "rigid" };
+    format!("joint {} ({kind}, {drive} drive)", j + 1)
+}
+
+fn inputs(b: &mut Builder, model: &Model) {
+    let fields = [
+        (InputField::QStar, "q_star", "position"),
+        (InputField::QdStar, "qd_star", "velocity"),
+        (InputField::QddStar, "qdd_star", "acceleration"),
+    ];
+    for (field, name, what) in fields {
+        for (j, joint) in model.joints.iter().enumerate() {
+            let u = joint_units(joint.kind);
+            let unit = match field {
+                InputField::QStar => u.coordinate,
+                InputField::QdStar => u.rate,
+                InputField::QddStar => u.acceleration,
+            };
+            let role = match joint.drive {
+                Drive::Flexible { .. } => format!("Drive end {what} (q*, q*', q*'' of eq. 2.1)"),
+                Drive::Rigid => format!("Prescribed {what}"),
+            };
+            let description = format!(
+                "{role} of {}, at the start of the communication step; held as the polynomial q* + q*' t + q*'' t^2/2 across it",
+                joint_label(model, j)
+            );
+            b.push(format!("{name}[{}]", j + 1), description, INPUT, real_start(Some(unit), 0.0), Quantity::Input(field, j));
+        }
+    }
+}
+
+fn outputs(b: &mut Builder, model: &Model) {
+    let n = model.nq();
+    type PerJoint = (&'static str, fn(usize) -> Output, &'static str);
+    let per_joint: [PerJoint; 3] =
+        [("q", Output::Q, "Joint coordinate q"), ("qd", Output::Qd, "Joint velocity q'"), ("qdd", Output::Qdd, "Joint acceleration q''")];
+    for (k, (name, output, what)) in per_joint.into_iter().enumerate() {
+        for j in 0..n {
+            let u = joint_units(model.joints[j].kind);
+            let unit = [u.coordinate, u.rate, u.acceleration][k];
+            b.push(format!("{name}[{}]", j + 1), format!("{what} of {}", joint_label(model, j)), OUTPUT, real(unit), Quantity::Output(output(j)));
+        }
+    }
+    for j in 0..n {
+        b.push(
+            format!("stick[{}]", j + 1),
+            format!("True while {} is in its stiction phase (always false for a rigid drive)", joint_label(model, j)),
+            (Causality::Output, Variability::Discrete),
+            Type::Boolean { start: None },
+            Quantity::Output(Output::Stick(j)),
+        );
+    }
+    for j in 0..n {
+        let force = joint_units(model.joints[j].kind).force;
+        let label = joint_label(model, j);
+        b.push(format!("F_drive[{}]", j + 1), format!("Drive force F^d (2.1) of {label}; for a rigid drive the force it supplies"), OUTPUT, real(force), Quantity::Output(Output::DriveForce(j)));
+    }
+    for j in 0..n {
+        let force = joint_units(model.joints[j].kind).force;
+        let label = joint_label(model, j);
+        b.push(
+            format!("F_friction[{}]", j + 1),
+            format!("Friction force F^f of {label}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint"),
+            OUTPUT,
+            real(force),
+            Quantity::Output(Output::FrictionForce(j)),
+        );
+    }
+    for j in 0..n {
+        let what = match model.joints[j].kind {
+            JointKind::Prismatic => "N_s of the slider (3.11)",
+            JointKind::Revolute => "R_A + R_B + |f_z| of the bearings (3.13)-(3.15)",
+        };
+        b.push(
+            format!("N_normal[{}]", j + 1),
+            format!("Normal load {what} of {}; 0 without friction geometry", joint_label(model, j)),
+            OUTPUT,
+            real("N"),
+            Quantity::Output(Output::NormalLoad(j)),
+        );
+    }
+    for j in 0..n {
+        for k in 0..3 {
+            b.push(
+                format!("f[{},{}]", j + 1, k + 1),
+                format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+                OUTPUT,
+                real("N"),
+                Quantity::Output(Output::ReactionForce(j, k)),
+            );
+        }
+    }
+    for j in 0..n {
+        for k in 0..3 {
+            b.push(
+                format!("n[{},{}]", j + 1, k + 1),
+                format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+                OUTPUT,
+                real("N.m"),
+                Quantity::Output(Output::ReactionMoment(j, k)),
+            );
+        }
+    }
+    for j in 0..n {
+        let unit = joint_units(model.joints[j].kind).coordinate;
+        b.push(format!("eps_joint[{}]", j + 1), format!("Lag eps_i = q*_i - q_i of {} behind its drive", joint_label(model, j)), OUTPUT, real(unit), Quantity::Output(Output::JointError(j)));
+    }
+    b.push("eps".into(), "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it".into(), OUTPUT, real("m"), Quantity::Output(Output::EndPointError));
+    for k in 0..3 {
+        b.push(format!("x_E[{}]", k + 1), format!("Coordinate {} of the end point E in the base frame 0", k + 1), OUTPUT, real("m"), Quantity::Output(Output::EndPoint(k)));
+    }
+    let energies = [
+        ("E_kin", Output::KineticEnergy, "Kinetic energy of the links"),
+        ("E_pot", Output::PotentialEnergy, "Potential energy of gravity (zero at the origin of frame 0)"),
+        ("E_spring", Output::SpringEnergy, "Elastic energy of the drive springs"),
+        ("W_drive", Output::DriveWork, "Work done by the drives since initialization"),
+        ("Q_friction", Output::FrictionHeat, "Heat produced by joint friction since initialization"),
+        ("Q_damping", Output::DampingHeat, "Heat produced by drive damping since initialization"),
+    ];
+    for (name, output, what) in energies {
+        b.push(name.into(), what.into(), OUTPUT, real("J"), Quantity::Output(output));
+    }
+}
+
+/// Unit and description of parameter `p` of joint `j` (0-based).
+fn parameter_meaning(model: &Model, p: Parameter, j: usize) -> (Option<&'static str>, String) {
+    let u = joint_units(model.joints[j].kind);
+    let (unit, what) = match p {
+        Parameter::Stiffness => (Some(u.stiffness), "Drive stiffness k (2.1)"),
+        Parameter::Damping => (Some(u.damping), "Drive damping h (2.1)"),
+        Parameter::Clearance => (Some(u.coordinate), "Drive clearance (backlash) Delta (2.1)"),
+        Parameter::MuKinetic => (None, "Kinetic friction coefficient mu_k"),
+        Parameter::MuStatic => (None, "Static friction coefficient mu_s (>= mu_k), stiction limit (3.16)"),
+        Parameter::StribeckVelocity => (Some(u.rate), "Stribeck velocity v_s of mu(v) = mu_k + (mu_s - mu_k) exp(-|v|/v_s); 0: constant mu_k"),
+        Parameter::SliderA => (Some("m"), "Slider length a along the axis (3.11)"),
+        Parameter::SliderB => (Some("m"), "Slider cross-section b along x of the joint frame (3.11)"),
+        Parameter::SliderC => (Some("m"), "Slider cross-section c along y of the joint frame (3.11)"),
+        Parameter::DiameterA => (Some("m"), "Diameter d_A of radial bearing A (3.15)"),
+        Parameter::DiameterB => (Some("m"), "Diameter d_B of radial bearing B (3.15)"),
+        Parameter::DiameterC => (Some("m"), "Diameter d_C of thrust bearing C (3.15)"),
+        Parameter::LengthA => (Some("m"), "Distance l_A of bearing A below the reaction reference point (3.13)"),
+        Parameter::LengthB => (Some("m"), "Distance l_B of bearing B above the reaction reference point (3.13)"),
+        Parameter::Mass => (Some("kg"), "Mass of the link moved by"),
+    };
+    let of = if p == Parameter::Mass { "" } else { " of" };
+    (unit, format!("{what}{of} {}; tunable between steps, relations (mu_s >= mu_k, ...) checked at the next step", joint_label(model, j)))
+}
+
+fn parameters(b: &mut Builder, model: &Model) {
+    for p in Parameter::ALL {
+        for j in 0..model.nq() {
+            let Some(value) = model.parameter(p, j) else { continue };
+            let (unit, description) = parameter_meaning(model, p, j);
+            // Every engine parameter is positive or non-negative.
+            let ty = Type::Real { unit, min: Some(0.0), max: None, start: Some(value) };
+            b.push(format!("{}[{}]", p.name(), j + 1), description, TUNABLE, ty, Quantity::Parameter(p, j));
+        }
+    }
+}
+
+fn start_values(b: &mut Builder, model: &Model) {
+    b.push(
+        "use_start_values".into(),
+        "false: flexible joints start at q = q_star, at rest (stuck where friction holds them); true: at q_start[i], qd_start[i]".into(),
+        FIXED,
+        Type::Boolean { start: Some(false) },
+        Quantity::UseStartValues,
+    );
+    let flexible: Vec<usize> = (0..model.nq()).filter(|&j| model.joints[j].drive.is_flexible()).collect();
+    for &j in &flexible {
+        let unit = joint_units(model.joints[j].kind).coordinate;
+        let description = format!("Start coordinate q of {}, used when use_start_values = true", joint_label(model, j));
+        b.push(format!("q_start[{}]", j + 1), description, FIXED, real_start(Some(unit), 0.0), Quantity::StartQ(j));
+    }
+    for &j in &flexible {
+        let unit = joint_units(model.joints[j].kind).rate;
+        let description = format!("Start velocity q' of {}, used when use_start_values = true", joint_label(model, j));
+        b.push(format!("qd_start[{}]", j + 1), description, FIXED, real_start(Some(unit), 0.0), Quantity::StartQd(j));
+    }
+}
+
+/// Fingerprint of a model file and the variable layout made from it: two
+/// FMUs with the same fingerprint read and write the same variables the same
+/// way.
+pub fn model_hash(model_text: &str, variables: &[Variable]) -> u128 {
+    let mut h = Fnv1a128::default();
+    h.field(b"StickSlipManipulator FMI 2.0 co-simulation, layout 1").field(model_text.as_bytes());
+    for v in variables {
+        let ty = match v.ty {
+            Type::Real { .. } => b"R",
+            Type::Boolean { .. } => b"B",
+        };
+        h.field(v.name.as_bytes()).field(&v.value_reference.to_le_bytes()).field(ty);
+    }
+    h.finish()
+}
+
+/// The GUID of the FMU: [`model_hash`] in the usual `{8-4-4-4-12}` form.
+pub fn guid(model_text: &str, variables: &[Variable]) -> String {
+    let h = format!("{:032x}", model_hash(model_text, variables));
+    format!("{{{}-{}-{}-{}-{}}}", &h[0..8], &h[8..12], &h[12..16], &h[16..20], &h[20..32])
+}

@@ -1,0 +1,681 @@
+//! The 34 exported functions of FMI 2.0 (common + co-simulation). Each one
+//! names the life-cycle states that allow it and hands checked arguments to
+//! [`Instance`]; nothing else is exported from the library.
+//!
+//! Beyond FMI 2.0, which leaves the slave's behaviour there open,
+//! fmi2DoStep, fmi2SetReal, fmi2SetBoolean and fmi2SetRealInputDerivatives
+//! are also allowed in the step-failed state: a discarded step leaves the
+//! state at the last good communication point, so a master may retry with a
+//! smaller step or other inputs.
+
+// FMI's names for arguments and constants.
+#![allow(non_snake_case, non_upper_case_globals)]
+
+use super::boundary::{
+    free_component, free_state, guard, into_component, into_state, out, slice, slice_mut, state, text, with_instance,
+};
+use super::description::MODEL_IDENTIFIER;
+use super::instance::Instance;
+use super::lifecycle::{LifeCycle::*, States};
+use super::logger::{Category, Logger};
+use super::status::{Fault, Status};
+use super::uri::resource_path;
+use fmi_sys::fmi2::*;
+use std::ffi::{c_char, CString};
+
+const ANY: States = States::of(&[Instantiated, InitializationMode, StepComplete, StepFailed, Terminated, Error]);
+const SET: States = States::of(&[Instantiated, InitializationMode, StepComplete, StepFailed]);
+const GET: States = States::of(&[InitializationMode, StepComplete, StepFailed, Terminated, Error]);
+const STEPPING: States = States::of(&[StepComplete, StepFailed]);
+const STATUS: States = States::of(&[StepComplete, StepFailed, Terminated]);
+
+// ---- compile-time check of every signature against fmi-sys -----------------
+
+const _: fmi2GetTypesPlatformTYPE = Some(fmi2GetTypesPlatform);
+const _: fmi2GetVersionTYPE = Some(fmi2GetVersion);
+const _: fmi2SetDebugLoggingTYPE = Some(fmi2SetDebugLogging);
+const _: fmi2InstantiateTYPE = Some(fmi2Instantiate);
+const _: fmi2FreeInstanceTYPE = Some(fmi2FreeInstance);
+const _: fmi2SetupExperimentTYPE = Some(fmi2SetupExperiment);
+const _: fmi2EnterInitializationModeTYPE = Some(fmi2EnterInitializationMode);
+const _: fmi2ExitInitializationModeTYPE = Some(fmi2ExitInitializationMode);
+const _: fmi2TerminateTYPE = Some(fmi2Terminate);
+const _: fmi2ResetTYPE = Some(fmi2Reset);
+const _: fmi2GetRealTYPE = Some(fmi2GetReal);
+const _: fmi2GetIntegerTYPE = Some(fmi2GetInteger);
+const _: fmi2GetBooleanTYPE = Some(fmi2GetBoolean);
+const _: fmi2GetStringTYPE = Some(fmi2GetString);
+const _: fmi2SetRealTYPE = Some(fmi2SetReal);
+const _: fmi2SetIntegerTYPE = Some(fmi2SetInteger);
+const _: fmi2SetBooleanTYPE = Some(fmi2SetBoolean);
+const _: fmi2SetStringTYPE = Some(fmi2SetString);
+const _: fmi2GetFMUstateTYPE = Some(fmi2GetFMUstate);
+const _: fmi2SetFMUstateTYPE = Some(fmi2SetFMUstate);
+const _: fmi2FreeFMUstateTYPE = Some(fmi2FreeFMUstate);
+const _: fmi2SerializedFMUstateSizeTYPE = Some(fmi2SerializedFMUstateSize);
+const _: fmi2SerializeFMUstateTYPE = Some(fmi2SerializeFMUstate);
+const _: fmi2DeSerializeFMUstateTYPE = Some(fmi2DeSerializeFMUstate);
+const _: fmi2GetDirectionalDerivativeTYPE = Some(fmi2GetDirectionalDerivative);
+const _: fmi2SetRealInputDerivativesTYPE = Some(fmi2SetRealInputDerivatives);
+const _: fmi2GetRealOutputDerivativesTYPE = Some(fmi2GetRealOutputDerivatives);
+const _: fmi2DoStepTYPE = Some(fmi2DoStep);
+const _: fmi2CancelStepTYPE = Some(fmi2CancelStep);
+const _: fmi2GetStatusTYPE = Some(fmi2GetStatus);
+const _: fmi2GetRealStatusTYPE = Some(fmi2GetRealStatus);
+const _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
+const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
+const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
+
+/// The names of the exported functions (the library's whole symbol table).
+pub const EXPORTED_FUNCTIONS: [&str; 34] = [
+    "fmi2GetTypesPlatform",
+    "fmi2GetVersion",
+    "fmi2SetDebugLogging",
+    "fmi2Instantiate",
+    "fmi2FreeInstance",
+    "fmi2SetupExperiment",
+    "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode",
+    "fmi2Terminate",
+    "fmi2Reset",
+    "fmi2GetReal",
+    "fmi2GetInteger",
+    "fmi2GetBoolean",
+    "fmi2GetString",
+    "fmi2SetReal",
+    "fmi2SetInteger",
+    "fmi2SetBoolean",
+    "fmi2SetString",
+    "fmi2GetFMUstate",
+    "fmi2SetFMUstate",
+    "fmi2FreeFMUstate",
+    "fmi2SerializedFMUstateSize",
+    "fmi2SerializeFMUstate",
+    "fmi2DeSerializeFMUstate",
+    "fmi2GetDirectionalDerivative",
+    "fmi2SetRealInputDerivatives",
+    "fmi2GetRealOutputDerivatives",
+    "fmi2DoStep",
+    "fmi2CancelStep",
+    "fmi2GetStatus",
+    "fmi2GetRealStatus",
+    "fmi2GetIntegerStatus",
+    "fmi2GetBooleanStatus",
+    "fmi2GetStringStatus",
+];
+
+// ---- functions without an instance ------------------------------------------------
+
+/// "default": the standard platform types. Any state.
+#[no_mangle]
+pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+    fmi2TypesPlatform.as_ptr().cast()
+}
+
+/// "2.0". Any state.
+#[no_mangle]
+pub extern "C" fn fmi2GetVersion() -> *const c_char {
+    fmi2Version.as_ptr().cast()
+}
+
+/// Creates an instance from `resources/model.toml` under
+/// `fmuResourceLocation`. Returns NULL, with the reason logged where a logger
+/// exists, for: no callbacks or logger, no instance name, a model-exchange
+/// request, a wrong GUID, or resources that cannot be read or parsed.
+///
+/// # Safety
+/// Pointers are null or valid as FMI 2.0 specifies.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Instantiate(
+    instanceName: fmi2String,
+    fmuType: fmi2Type,
+    fmuGUID: fmi2String,
+    fmuResourceLocation: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    loggingOn: fmi2Boolean,
+) -> fmi2Component {
+    // SAFETY: `functions` is null or valid by contract.
+    let Some(functions) = (unsafe { functions.as_ref() }) else { return std::ptr::null_mut() };
+    if functions.logger.is_none() {
+        return std::ptr::null_mut();
+    }
+    guard(std::ptr::null_mut(), || {
+        // SAFETY: the strings are null or valid by contract.
+        let name = unsafe { text(instanceName, "instanceName") }.ok().filter(|n| !n.is_empty());
+        let logger = Logger::new(
+            functions.logger,
+            functions.componentEnvironment,
+            CString::new(name.unwrap_or("?")).unwrap_or_default(),
+            loggingOn != 0,
+        );
+        let instantiate = || -> Result<Instance, String> {
+            name.ok_or("instanceName is NULL or empty")?;
+            if fmuType != fmi2Type_fmi2CoSimulation {
+                return Err(format!("fmuType = {fmuType}: {MODEL_IDENTIFIER} is a co-simulation FMU only"));
+            }
+            // SAFETY: null or valid by contract.
+            let guid = unsafe { text(fmuGUID, "fmuGUID") }.map_err(|f| f.message)?;
+            let location = unsafe { text(fmuResourceLocation, "fmuResourceLocation") }.map_err(|f| f.message)?;
+            let file = resource_path(location)?.join("model.toml");
+            let model_text =
+                std::fs::read_to_string(&file).map_err(|e| format!("cannot read the model file {}: {e}", file.display()))?;
+            let instance = Instance::new(&model_text, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
+            if instance.guid() != guid {
+                return Err(format!(
+                    "fmuGUID {guid} does not match the FMU's resources (GUID {}): modelDescription.xml and resources/model.toml are from different FMUs",
+                    instance.guid()
+                ));
+            }
+            Ok(instance)
+        };
+        match instantiate() {
+            Ok(instance) => into_component(instance),
+            Err(reason) => {
+                logger.log(Status::Error, Category::StatusError, &format!("fmi2Instantiate: {reason}"));
+                std::ptr::null_mut()
+            }
+        }
+    })
+}
+
+/// Frees the instance; NULL is accepted. Any state.
+///
+/// # Safety
+/// `c` is null or from fmi2Instantiate and not used again.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+    // SAFETY: see the function's contract.
+    guard((), || unsafe { free_component(c) })
+}
+
+// ---- life cycle ----------------------------------------------------------------
+
+/// Log categories on or off. Any state.
+///
+/// # Safety
+/// Pointers are null or valid as FMI 2.0 specifies (also for all functions below).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetDebugLogging(
+    c: fmi2Component,
+    loggingOn: fmi2Boolean,
+    nCategories: usize,
+    categories: *const fmi2String,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2SetDebugLogging", ANY, |inst| {
+            let names = slice(categories, nCategories, "categories[]")?
+                .iter()
+                .map(|p| text(*p, "categories[]"))
+                .collect::<Result<Vec<_>, _>>()?;
+            inst.set_debug_logging(loggingOn != 0, &names)
+        })
+    }
+}
+
+/// Start and stop time. Instantiated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetupExperiment(
+    c: fmi2Component,
+    _toleranceDefined: fmi2Boolean,
+    _tolerance: fmi2Real,
+    startTime: fmi2Real,
+    stopTimeDefined: fmi2Boolean,
+    stopTime: fmi2Real,
+) -> fmi2Status {
+    let stop = (stopTimeDefined != 0).then_some(stopTime);
+    unsafe { with_instance(c, "fmi2SetupExperiment", States::of(&[Instantiated]), |inst| inst.setup_experiment(startTime, stop)) }
+}
+
+/// Instantiated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2EnterInitializationMode", States::of(&[Instantiated]), Instance::enter_initialization_mode)
+    }
+}
+
+/// Starts the engine. Initialization mode.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2ExitInitializationMode", States::of(&[InitializationMode]), Instance::exit_initialization_mode)
+    }
+}
+
+/// Step complete, step failed, error.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2Terminate", States::of(&[StepComplete, StepFailed, Error]), Instance::terminate) }
+}
+
+/// Back to instantiated with the start values. Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2Reset", ANY, Instance::reset) }
+}
+
+// ---- getters and setters -------------------------------------------------------------
+
+/// Initialization mode, step complete, step failed, terminated, error.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2GetReal", GET, |inst| inst.get_real(slice(vr, nvr, "vr[]")?, slice_mut(value, nvr, "value[]")?))
+    }
+}
+
+/// No Integer variables: only nvr = 0 succeeds. States as fmi2GetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *mut fmi2Integer,
+) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2GetInteger", GET, |inst| inst.no_variables_of("Integer", slice(vr, nvr, "vr[]")?)) }
+}
+
+/// States as fmi2GetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2GetBoolean", GET, |inst| {
+            inst.get_boolean(slice(vr, nvr, "vr[]")?, slice_mut(value, nvr, "value[]")?)
+        })
+    }
+}
+
+/// No String variables: only nvr = 0 succeeds. States as fmi2GetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetString(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *mut fmi2String,
+) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2GetString", GET, |inst| inst.no_variables_of("String", slice(vr, nvr, "vr[]")?)) }
+}
+
+/// Inputs and tunable parameters: instantiated, initialization mode, step
+/// complete, step failed; fixed parameters before step mode only.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2SetReal", SET, |inst| inst.set_real(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?)) }
+}
+
+/// No Integer variables: only nvr = 0 succeeds. States as fmi2SetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *const fmi2Integer,
+) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2SetInteger", SET, |inst| inst.no_variables_of("Integer", slice(vr, nvr, "vr[]")?)) }
+}
+
+/// `use_start_values`, before step mode. States as fmi2SetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2SetBoolean", SET, |inst| inst.set_boolean(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?))
+    }
+}
+
+/// No String variables: only nvr = 0 succeeds. States as fmi2SetReal.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetString(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *const fmi2String,
+) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2SetString", SET, |inst| inst.no_variables_of("String", slice(vr, nvr, "vr[]")?)) }
+}
+
+// ---- FMU states -------------------------------------------------------------------------
+
+/// Copies the state; reuses `*FMUstate` if it is not NULL. Any state but error.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, FMUstate: *mut fmi2FMUstate) -> fmi2Status {
+    let allowed = States::of(&[Instantiated, InitializationMode, StepComplete, StepFailed, Terminated]);
+    unsafe {
+        with_instance(c, "fmi2GetFMUstate", allowed, |inst| {
+            let slot = out(FMUstate, "FMUstate")?;
+            let bytes = inst.snapshot();
+            if slot.is_null() {
+                *slot = into_state(bytes);
+            } else {
+                state(*slot)?.bytes = bytes;
+            }
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// Restores a state of an instance of the same model. Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, FMUstate: fmi2FMUstate) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2SetFMUstate", ANY, |inst| inst.restore(&state(FMUstate)?.bytes)) }
+}
+
+/// Frees a state and sets `*FMUstate` to NULL; NULL is accepted. Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, FMUstate: *mut fmi2FMUstate) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2FreeFMUstate", ANY, |_| {
+            if !FMUstate.is_null() {
+                free_state(out(FMUstate, "FMUstate")?)?;
+            }
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// Size of the serialized state. Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, FMUstate: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2SerializedFMUstateSize", ANY, |_| {
+            *out(size, "size")? = state(FMUstate)?.bytes.len();
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// Writes the serialized state; `size` must be fmi2SerializedFMUstateSize's.
+/// Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializeFMUstate(
+    c: fmi2Component,
+    FMUstate: fmi2FMUstate,
+    serializedState: *mut fmi2Byte,
+    size: usize,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2SerializeFMUstate", ANY, |_| {
+            let bytes = &state(FMUstate)?.bytes;
+            if size != bytes.len() {
+                return Err(Fault::error(format!("size = {size}, the serialized state has {} bytes", bytes.len())));
+            }
+            let target = slice_mut(serializedState.cast::<u8>(), size, "serializedState[]")?;
+            target.copy_from_slice(bytes);
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// Checks serialized bytes (corrupted, truncated and foreign ones are
+/// rejected) and makes a state of them; reuses `*FMUstate` if not NULL.
+/// Any state.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+    c: fmi2Component,
+    serializedState: *const fmi2Byte,
+    size: usize,
+    FMUstate: *mut fmi2FMUstate,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2DeSerializeFMUstate", ANY, |inst| {
+            let bytes = slice(serializedState.cast::<u8>(), size, "serializedState[]")?;
+            let slot = out(FMUstate, "FMUstate")?;
+            inst.check_snapshot(bytes)?;
+            if slot.is_null() {
+                *slot = into_state(bytes.to_vec());
+            } else {
+                state(*slot)?.bytes = bytes.to_vec();
+            }
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// Not provided (providesDirectionalDerivative = false): fmi2Error.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+    c: fmi2Component,
+    _vUnknown_ref: *const fmi2ValueReference,
+    _nUnknown: usize,
+    _vKnown_ref: *const fmi2ValueReference,
+    _nKnown: usize,
+    _dvKnown: *const fmi2Real,
+    _dvUnknown: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2GetDirectionalDerivative", GET, |_| {
+            Err(Fault::error("directional derivatives are not provided (providesDirectionalDerivative = false)"))
+        })
+    }
+}
+
+// ---- co-simulation ----------------------------------------------------------------------
+
+/// Derivatives of the inputs (orders 1, 2 of `q_star[i]`, 1 of `qd_star[i]`).
+/// Instantiated, initialization mode, step complete, step failed.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    order: *const fmi2Integer,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2SetRealInputDerivatives", SET, |inst| {
+            inst.set_real_input_derivatives(slice(vr, nvr, "vr[]")?, slice(order, nvr, "order[]")?, slice(value, nvr, "value[]")?)
+        })
+    }
+}
+
+/// Not provided (maxOutputDerivativeOrder = 0): fmi2Error.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+    c: fmi2Component,
+    _vr: *const fmi2ValueReference,
+    _nvr: usize,
+    _order: *const fmi2Integer,
+    _value: *mut fmi2Real,
+) -> fmi2Status {
+    let allowed = States::of(&[StepComplete, StepFailed, Terminated, Error]);
+    unsafe {
+        with_instance(c, "fmi2GetRealOutputDerivatives", allowed, |_| {
+            Err(Fault::error("output derivatives are not provided (maxOutputDerivativeOrder = 0)"))
+        })
+    }
+}
+
+/// One communication step from `currentCommunicationPoint` (must be the
+/// FMU's time) over `communicationStepSize` > 0. Step complete, step failed.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2DoStep(
+    c: fmi2Component,
+    currentCommunicationPoint: fmi2Real,
+    communicationStepSize: fmi2Real,
+    _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2DoStep", STEPPING, |inst| inst.do_step(currentCommunicationPoint, communicationStepSize))
+    }
+}
+
+/// Steps are synchronous, so there is nothing to cancel: fmi2Error.
+/// Step complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2CancelStep", STATUS, |_| {
+            Err(Fault::error("there is no step to cancel: fmi2DoStep never returns fmi2Pending"))
+        })
+    }
+}
+
+/// A status kind that this FMU has no value for: fmi2Discard, as FMI 2.0
+/// prescribes, with the reason.
+fn no_status(kind: fmi2StatusKind) -> Fault {
+    let what = match kind {
+        fmi2StatusKind_fmi2DoStepStatus | fmi2StatusKind_fmi2PendingStatus => {
+            "only after fmi2DoStep returned fmi2Pending, which it never does"
+        }
+        fmi2StatusKind_fmi2LastSuccessfulTime => "with fmi2GetRealStatus",
+        fmi2StatusKind_fmi2Terminated => "with fmi2GetBooleanStatus",
+        _ => "(unknown status kind)",
+    };
+    Fault::discard(format!("status kind {kind} is available {what}"))
+}
+
+/// Step complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Status) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2GetStatus", STATUS, |_| Err(no_status(s))) }
+}
+
+/// fmi2LastSuccessfulTime: the time of the last good communication point.
+/// Step complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2GetRealStatus", STATUS, |inst| {
+            if s != fmi2StatusKind_fmi2LastSuccessfulTime {
+                return Err(no_status(s));
+            }
+            *out(value, "value")? = inst.last_successful_time();
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// No integer status kinds. Step complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2GetIntegerStatus", STATUS, |_| Err(no_status(s))) }
+}
+
+/// fmi2Terminated: false, the FMU never asks to end the simulation (a
+/// discarded step can be retried). Step complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+    unsafe {
+        with_instance(c, "fmi2GetBooleanStatus", STATUS, |_| {
+            if s != fmi2StatusKind_fmi2Terminated {
+                return Err(no_status(s));
+            }
+            *out(value, "value")? = fmi2False as fmi2Boolean;
+            Ok(Status::Ok)
+        })
+    }
+}
+
+/// No string status kinds (fmi2PendingStatus needs fmi2Pending). Step
+/// complete, step failed, terminated.
+///
+/// # Safety
+/// See [`fmi2SetDebugLogging`].
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
+    unsafe { with_instance(c, "fmi2GetStringStatus", STATUS, |_| Err(no_status(s))) }
+}

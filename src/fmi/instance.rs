@@ -1,0 +1,585 @@
+//! One FMU instance: its life cycle, the values the master set, and the
+//! simulator. Safe Rust only; `boundary.rs` turns pointers into slices and
+//! results into `fmi2Status`, `exports.rs` says which states allow a call.
+
+use super::description::{self, Causality, InputField, Output, Quantity, Type, Variability, Variable};
+use super::lifecycle::{LifeCycle, States};
+use super::logger::{Category, Logger};
+use super::snapshot::{self, Snapshot};
+use super::status::{Fault, Outcome, Status};
+use crate::error::StepError;
+use crate::model::Model;
+use crate::stepper::{DriveInputs, InitialState, Phase, Simulator, State};
+use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
+
+/// The value of a variable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Value {
+    Real(f64),
+    Boolean(bool),
+}
+
+/// Relative tolerance on the communication point, × max(1, |t|).
+const TIME_TOLERANCE: f64 = 1e-9;
+
+/// An instance of the FMU.
+pub(crate) struct Instance {
+    variables: Vec<Variable>,
+    model_hash: u128,
+    guid: String,
+    /// The model as read from `resources/model.toml` (what fmi2Reset returns to).
+    base: Model,
+    /// The model with the parameter values the master set.
+    model: Model,
+    sim: Simulator,
+    lifecycle: LifeCycle,
+    start_time: f64,
+    stop_time: Option<f64>,
+    /// q*, q̇*, q̈* as set by the master (index = [`input_index`]).
+    inputs: [Vec<f64>; 3],
+    use_start_values: bool,
+    q_start: Vec<f64>,
+    qd_start: Vec<f64>,
+    /// Before step mode: the engine must be (re)started from the current
+    /// values before outputs are read.
+    stale: bool,
+    pub(crate) logger: Logger,
+}
+
+fn input_index(field: InputField) -> usize {
+    match field {
+        InputField::QStar => 0,
+        InputField::QdStar => 1,
+        InputField::QddStar => 2,
+    }
+}
+
+fn drive_inputs(inputs: &[Vec<f64>; 3]) -> DriveInputs<'_> {
+    DriveInputs { q_star: &inputs[0], qd_star: &inputs[1], qdd_star: &inputs[2] }
+}
+
+fn output_value(s: &State, o: Output) -> Value {
+    let e = &s.energy;
+    Value::Real(match o {
+        Output::Q(j) => s.q[j],
+        Output::Qd(j) => s.qd[j],
+        Output::Qdd(j) => s.qdd[j],
+        Output::Stick(j) => return Value::Boolean(s.is_stuck(j)),
+        Output::DriveForce(j) => s.drive_force[j],
+        Output::FrictionForce(j) => s.friction_force[j],
+        Output::NormalLoad(j) => s.normal_load[j],
+        Output::ReactionForce(j, k) => s.reaction_force[j][k],
+        Output::ReactionMoment(j, k) => s.reaction_moment[j][k],
+        Output::JointError(j) => s.joint_error(j),
+        Output::EndPointError => s.end_point_error(),
+        Output::EndPoint(k) => s.end_point[k],
+        Output::KineticEnergy => e.kinetic,
+        Output::PotentialEnergy => e.potential,
+        Output::SpringEnergy => e.spring,
+        Output::DriveWork => e.drive_work,
+        Output::FrictionHeat => e.friction_heat,
+        Output::DampingHeat => e.damping_heat,
+    })
+}
+
+fn phase_name(p: Phase) -> &'static str {
+    match p {
+        Phase::Prescribed => "prescribed",
+        Phase::Stuck => "stuck",
+        Phase::Slipping(d) if d > 0 => "slipping (+)",
+        Phase::Slipping(_) => "slipping (-)",
+    }
+}
+
+fn type_error(v: &Variable, expected: &str) -> Fault {
+    let actual = match v.ty {
+        Type::Real { .. } => "Real",
+        Type::Boolean { .. } => "Boolean",
+    };
+    Fault::error(format!("`{}` (value reference {}) is a {actual} variable, not {expected}", v.name, v.value_reference))
+}
+
+impl Instance {
+    /// An instance of the model in `model_text` (a model file), logging to
+    /// `logger`.
+    pub(crate) fn new(model_text: &str, logger: Logger) -> Result<Instance, String> {
+        let model = Model::from_toml_str(model_text).map_err(|e| e.to_string())?;
+        let variables = description::variables(&model);
+        let n = model.nq();
+        let mut instance = Instance {
+            model_hash: description::model_hash(model_text, &variables),
+            guid: description::guid(model_text, &variables),
+            variables,
+            sim: Simulator::new(model.clone()).map_err(|e| e.to_string())?,
+            base: model.clone(),
+            model,
+            lifecycle: LifeCycle::Instantiated,
+            start_time: 0.0,
+            stop_time: None,
+            inputs: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            use_start_values: false,
+            q_start: vec![0.0; n],
+            qd_start: vec![0.0; n],
+            stale: true,
+            logger,
+        };
+        instance.reset().map_err(|f| f.message)?;
+        Ok(instance)
+    }
+
+    /// The GUID of the model this instance runs.
+    pub(crate) fn guid(&self) -> &str {
+        &self.guid
+    }
+
+    /// Checks the call sequence.
+    pub(crate) fn check_state(&self, allowed: States) -> Result<(), Fault> {
+        if allowed.contains(self.lifecycle) {
+            return Ok(());
+        }
+        Err(Fault::error(format!(
+            "illegal call sequence: not allowed in state `{}` (allowed in: {})",
+            self.lifecycle.name(),
+            allowed.names()
+        )))
+    }
+
+    /// After a caught panic: the instance may be inconsistent, so only
+    /// reset, restore, terminate, getters and free remain.
+    pub(crate) fn fail(&mut self, function: &str, reason: &str) {
+        self.lifecycle = LifeCycle::Error;
+        self.logger.log(
+            Status::Error,
+            Category::StatusError,
+            &format!("{function}: internal error ({reason}); the instance is in the error state: call fmi2Reset, fmi2SetFMUstate, fmi2Terminate or fmi2FreeInstance"),
+        );
+    }
+
+    /// The FMU's time: the engine's once it runs, else the start time.
+    fn time(&self) -> f64 {
+        if self.lifecycle.is_running() {
+            self.sim.state().time
+        } else {
+            self.start_time
+        }
+    }
+
+    fn variable(&self, vr: fmi2ValueReference) -> Result<&Variable, Fault> {
+        self.variables.get(vr as usize).ok_or_else(|| {
+            Fault::error(format!("unknown value reference {vr} (this FMU has 0 to {})", self.variables.len() - 1))
+        })
+    }
+
+    // ---- life cycle -------------------------------------------------------
+
+    /// fmi2Reset: back to the state after fmi2Instantiate.
+    pub(crate) fn reset(&mut self) -> Outcome {
+        let n = self.base.nq();
+        self.sim = Simulator::new(self.base.clone()).map_err(|e| Fault::error(e.to_string()))?;
+        self.model = self.base.clone();
+        self.lifecycle = LifeCycle::Instantiated;
+        self.start_time = 0.0;
+        self.stop_time = None;
+        self.inputs = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        self.use_start_values = false;
+        self.q_start = vec![0.0; n];
+        self.qd_start = vec![0.0; n];
+        self.stale = true;
+        Ok(Status::Ok)
+    }
+
+    /// fmi2SetDebugLogging.
+    pub(crate) fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Outcome {
+        self.logger.set_debug_logging(on, categories).map_err(Fault::error)?;
+        Ok(Status::Ok)
+    }
+
+    /// fmi2SetupExperiment (the master's tolerance is not used: the Newmark
+    /// tolerance is the `tolerance` parameter).
+    pub(crate) fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Outcome {
+        if !start.is_finite() {
+            return Err(Fault::error(format!("startTime = {start} s is not finite")));
+        }
+        if let Some(stop) = stop.filter(|s| !(s.is_finite() && *s >= start)) {
+            return Err(Fault::error(format!("stopTime = {stop} s is not a finite time at or after startTime = {start} s")));
+        }
+        self.start_time = start;
+        self.stop_time = stop;
+        self.stale = true;
+        Ok(Status::Ok)
+    }
+
+    /// fmi2EnterInitializationMode.
+    pub(crate) fn enter_initialization_mode(&mut self) -> Outcome {
+        self.lifecycle = LifeCycle::InitializationMode;
+        self.stale = true;
+        Ok(Status::Ok)
+    }
+
+    /// fmi2ExitInitializationMode: starts the engine from the inputs, start
+    /// values and parameters. On failure the instance stays in
+    /// initialization mode, so that the master can correct the values.
+    pub(crate) fn exit_initialization_mode(&mut self) -> Outcome {
+        self.start_engine()?;
+        self.lifecycle = LifeCycle::StepComplete;
+        if self.logger.enabled(Category::Events) {
+            let s = self.sim.state();
+            let phases: Vec<String> =
+                s.phase.iter().enumerate().map(|(j, p)| format!("joint {} {}", j + 1, phase_name(*p))).collect();
+            self.logger.log(Status::Ok, Category::Events, &format!("t = {} s: initialized; {}", s.time, phases.join(", ")));
+        }
+        Ok(Status::Ok)
+    }
+
+    /// Starts the engine at the start time if a value changed since.
+    fn start_engine(&mut self) -> Result<(), Fault> {
+        if !self.stale {
+            return Ok(());
+        }
+        let mut sim = Simulator::new(self.model.clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
+        let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
+        sim.initialize(self.start_time, &drive_inputs(&self.inputs), initial)
+            .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
+        self.sim = sim;
+        self.stale = false;
+        self.log_transitions();
+        Ok(())
+    }
+
+    /// fmi2Terminate.
+    pub(crate) fn terminate(&mut self) -> Outcome {
+        self.lifecycle = LifeCycle::Terminated;
+        Ok(Status::Ok)
+    }
+
+    // ---- getters and setters ------------------------------------------------
+
+    fn value(&self, q: Quantity) -> Value {
+        match q {
+            Quantity::Input(field, j) => Value::Real(self.inputs[input_index(field)][j]),
+            Quantity::Output(o) => output_value(self.sim.state(), o),
+            // The layout lists only the parameters a joint has.
+            Quantity::Parameter(p, j) => Value::Real(self.model.parameter(p, j).unwrap_or(f64::NAN)),
+            Quantity::Setting(s) => Value::Real(s.get(&self.model.integrator)),
+            Quantity::UseStartValues => Value::Boolean(self.use_start_values),
+            Quantity::StartQ(j) => Value::Real(self.q_start[j]),
+            Quantity::StartQd(j) => Value::Real(self.qd_start[j]),
+        }
+    }
+
+    /// Before step mode, outputs come from starting the engine with the
+    /// current values (initial unknowns).
+    fn prepare_outputs(&mut self, vrs: &[fmi2ValueReference]) -> Result<(), Fault> {
+        let wants_output = || vrs.iter().any(|vr| self.variables.get(*vr as usize).is_some_and(|v| v.causality == Causality::Output));
+        if self.lifecycle.is_configuring() && wants_output() {
+            self.start_engine()?;
+        }
+        Ok(())
+    }
+
+    /// fmi2GetReal.
+    pub(crate) fn get_real(&mut self, vrs: &[fmi2ValueReference], values: &mut [f64]) -> Outcome {
+        self.prepare_outputs(vrs)?;
+        for (vr, out) in vrs.iter().zip(values) {
+            let v = self.variable(*vr)?;
+            match self.value(v.quantity) {
+                Value::Real(x) => *out = x,
+                Value::Boolean(_) => return Err(type_error(v, "Real")),
+            }
+        }
+        Ok(Status::Ok)
+    }
+
+    /// fmi2GetBoolean.
+    pub(crate) fn get_boolean(&mut self, vrs: &[fmi2ValueReference], values: &mut [fmi2Boolean]) -> Outcome {
+        self.prepare_outputs(vrs)?;
+        for (vr, out) in vrs.iter().zip(values) {
+            let v = self.variable(*vr)?;
+            match self.value(v.quantity) {
+                Value::Boolean(b) => *out = fmi2Boolean::from(b),
+                Value::Real(_) => return Err(type_error(v, "Boolean")),
+            }
+        }
+        Ok(Status::Ok)
+    }
+
+    /// fmi2Get/SetInteger, fmi2Get/SetString: this FMU has no such variables.
+    pub(crate) fn no_variables_of(&self, kind: &str, vrs: &[fmi2ValueReference]) -> Outcome {
+        match vrs.first() {
+            None => Ok(Status::Ok),
+            Some(vr) => Err(self.variable(*vr).map_or_else(|f| f, |v| type_error(v, kind))),
+        }
+    }
+
+    /// Whether the master may set `v` now.
+    fn check_settable(&self, v: &Variable) -> Result<(), Fault> {
+        match (v.causality, v.variability) {
+            (Causality::Output, _) => Err(Fault::error(format!("`{}` is an output; outputs cannot be set", v.name))),
+            (Causality::Parameter, Variability::Fixed) if !self.lifecycle.is_configuring() => Err(Fault::error(format!(
+                "`{}` is a fixed parameter: it can be set only before fmi2ExitInitializationMode",
+                v.name
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// fmi2SetReal: every value is checked before any is stored, so a
+    /// rejected call changes nothing.
+    pub(crate) fn set_real(&mut self, vrs: &[fmi2ValueReference], values: &[f64]) -> Outcome {
+        let mut trial: Option<Model> = None;
+        for (vr, x) in vrs.iter().zip(values) {
+            let v = self.variable(*vr)?;
+            if !matches!(v.ty, Type::Real { .. }) {
+                return Err(type_error(v, "Real"));
+            }
+            if !x.is_finite() {
+                return Err(Fault::error(format!("`{}` = {x} is not a finite number", v.name)));
+            }
+            self.check_settable(v)?;
+            match v.quantity {
+                Quantity::Parameter(p, j) => trial
+                    .get_or_insert_with(|| self.model.clone())
+                    .set_parameter(p, j, *x)
+                    .map_err(|e| Fault::error(e.to_string()))?,
+                Quantity::Setting(s) => s.check(*x).map_err(Fault::error)?,
+                _ => {}
+            }
+        }
+        for (vr, x) in vrs.iter().zip(values) {
+            self.store(self.variables[*vr as usize].quantity, Value::Real(*x))?;
+        }
+        Ok(Status::Ok)
+    }
+
+    /// fmi2SetBoolean.
+    pub(crate) fn set_boolean(&mut self, vrs: &[fmi2ValueReference], values: &[fmi2Boolean]) -> Outcome {
+        for vr in vrs {
+            let v = self.variable(*vr)?;
+            if !matches!(v.ty, Type::Boolean { .. }) {
+                return Err(type_error(v, "Boolean"));
+            }
+            self.check_settable(v)?;
+        }
+        for (vr, b) in vrs.iter().zip(values) {
+            self.store(self.variables[*vr as usize].quantity, Value::Boolean(*b != 0))?;
+        }
+        Ok(Status::Ok)
+    }
+
+    /// Stores a checked value.
+    fn store(&mut self, q: Quantity, value: Value) -> Result<(), Fault> {
+        let invalid = |e: crate::error::ModelError| Fault::error(e.to_string());
+        match (q, value) {
+            (Quantity::Input(field, j), Value::Real(x)) => self.inputs[input_index(field)][j] = x,
+            (Quantity::Parameter(p, j), Value::Real(x)) => {
+                self.model.set_parameter(p, j, x).map_err(invalid)?;
+                if !self.lifecycle.is_configuring() {
+                    self.sim.set_parameter(p, j, x).map_err(invalid)?;
+                }
+            }
+            (Quantity::Setting(s), Value::Real(x)) => s.set(&mut self.model.integrator, x),
+            (Quantity::StartQ(j), Value::Real(x)) => self.q_start[j] = x,
+            (Quantity::StartQd(j), Value::Real(x)) => self.qd_start[j] = x,
+            (Quantity::UseStartValues, Value::Boolean(b)) => self.use_start_values = b,
+            (q, v) => return Err(Fault::error(format!("{v:?} cannot be stored in {q:?}"))),
+        }
+        if self.lifecycle.is_configuring() {
+            self.stale = true;
+        }
+        Ok(())
+    }
+
+    /// fmi2SetRealInputDerivatives: derivative `order` of input `q_star[i]`
+    /// (1: q̇*, 2: q̈*) or `qd_star[i]` (1: q̈*) sets that input. Higher
+    /// derivatives have no place in the engine's second-order input
+    /// polynomial: zero ones are accepted, others are ignored with a warning.
+    pub(crate) fn set_real_input_derivatives(
+        &mut self,
+        vrs: &[fmi2ValueReference],
+        orders: &[fmi2Integer],
+        values: &[f64],
+    ) -> Outcome {
+        let mut updates = Vec::with_capacity(vrs.len());
+        let mut ignored = Vec::new();
+        for ((vr, order), x) in vrs.iter().zip(orders).zip(values) {
+            let v = self.variable(*vr)?;
+            let Quantity::Input(field, j) = v.quantity else {
+                return Err(Fault::error(format!("`{}` is not an input; only inputs have input derivatives", v.name)));
+            };
+            if *order < 1 {
+                return Err(Fault::error(format!("derivative order {order} of `{}`: orders start at 1", v.name)));
+            }
+            if !x.is_finite() {
+                return Err(Fault::error(format!("derivative of order {order} of `{}` = {x} is not a finite number", v.name)));
+            }
+            match input_index(field) + *order as usize {
+                k @ 0..=2 => updates.push((k, j, *x)),
+                _ if *x == 0.0 => {}
+                _ => ignored.push(format!("order {order} of `{}`", v.name)),
+            }
+        }
+        for (k, j, x) in updates {
+            self.inputs[k][j] = x;
+        }
+        if self.lifecycle.is_configuring() {
+            self.stale = true;
+        }
+        if ignored.is_empty() {
+            return Ok(Status::Ok);
+        }
+        self.logger.log(
+            Status::Warning,
+            Category::StatusWarning,
+            &format!(
+                "fmi2SetRealInputDerivatives: ignored the derivative {}: the inputs are held as q* + q*' t + q*'' t^2/2 across a step",
+                ignored.join(", ")
+            ),
+        );
+        Ok(Status::Warning)
+    }
+
+    // ---- stepping ---------------------------------------------------------------
+
+    /// fmi2DoStep.
+    pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Outcome {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Fault::error(format!("communicationStepSize = {h} s: must be positive and finite")));
+        }
+        let now = self.sim.state().time;
+        let tolerance = TIME_TOLERANCE * now.abs().max(1.0);
+        if !(t.is_finite() && (t - now).abs() <= tolerance) {
+            return Err(Fault::error(format!("currentCommunicationPoint = {t} s is not the FMU's time {now} s")));
+        }
+        if let Some(stop) = self.stop_time {
+            if now + h > stop + TIME_TOLERANCE * stop.abs().max(1.0) {
+                return Err(Fault::error(format!("a step to t = {} s passes the stop time {stop} s", now + h)));
+            }
+        }
+        let result = self.sim.advance(&drive_inputs(&self.inputs), h);
+        match result {
+            Ok(()) => {
+                self.log_transitions();
+                self.lifecycle = LifeCycle::StepComplete;
+                Ok(Status::Ok)
+            }
+            Err(StepError::InvalidModel { reason }) => {
+                self.sim.clear_transitions();
+                Err(Fault::error(format!("step from t = {now} s not taken: {reason}; correct the parameters and repeat the step")))
+            }
+            Err(e @ (StepError::NotConverged { .. } | StepError::SingularMassMatrix { .. } | StepError::NonFiniteState { .. })) => {
+                self.sim.clear_transitions();
+                self.lifecycle = LifeCycle::StepFailed;
+                self.logger.log(Status::Ok, Category::Events, &format!("t = {now} s: step of {h} s discarded ({e})"));
+                Err(Fault::discard(format!(
+                    "step [{now}, {}] s not completed: {e}; the state stays at t = {now} s (fmi2LastSuccessfulTime)",
+                    now + h
+                )))
+            }
+            Err(e) => {
+                self.sim.clear_transitions();
+                Err(Fault::error(e.to_string()))
+            }
+        }
+    }
+
+    /// Logs the phase changes since the last call (category logEvents) and
+    /// forgets them.
+    fn log_transitions(&mut self) {
+        if self.logger.enabled(Category::Events) {
+            let (list, dropped) = self.sim.transitions();
+            for t in list {
+                let message =
+                    format!("t = {} s: joint {} {} -> {}", t.time, t.joint + 1, phase_name(t.from), phase_name(t.to));
+                self.logger.log(Status::Ok, Category::Events, &message);
+            }
+            if dropped > 0 {
+                self.logger.log(Status::Ok, Category::Events, &format!("... and {dropped} more phase changes in this step"));
+            }
+        }
+        self.sim.clear_transitions();
+    }
+
+    /// fmi2GetRealStatus(fmi2LastSuccessfulTime): the engine's time, which
+    /// a discarded step leaves at the last good communication point.
+    pub(crate) fn last_successful_time(&self) -> f64 {
+        self.time()
+    }
+
+    // ---- FMU states ---------------------------------------------------------------
+
+    fn parameter_quantities(&self) -> impl Iterator<Item = Quantity> + '_ {
+        self.variables.iter().map(|v| v.quantity).filter(|q| matches!(q, Quantity::Parameter(..) | Quantity::Setting(_)))
+    }
+
+    /// fmi2GetFMUstate: the serialized state.
+    pub(crate) fn snapshot(&self) -> Vec<u8> {
+        let parameters = self
+            .parameter_quantities()
+            .map(|q| match self.value(q) {
+                Value::Real(x) => x,
+                Value::Boolean(b) => f64::from(u8::from(b)),
+            })
+            .collect();
+        let s = Snapshot {
+            lifecycle: self.lifecycle,
+            start_time: self.start_time,
+            stop_time: self.stop_time,
+            inputs: self.inputs.clone(),
+            use_start_values: self.use_start_values,
+            q_start: self.q_start.clone(),
+            qd_start: self.qd_start.clone(),
+            parameters,
+            state: self.sim.state().clone(),
+        };
+        snapshot::encode(&s, self.model_hash)
+    }
+
+    /// Decodes `bytes` made by [`Instance::snapshot`] of an instance of the
+    /// same model.
+    pub(crate) fn check_snapshot(&self, bytes: &[u8]) -> Result<Snapshot, Fault> {
+        let n_parameters = self.parameter_quantities().count();
+        snapshot::decode(bytes, self.model_hash, self.base.nq(), n_parameters)
+            .map_err(|e| Fault::error(format!("rejected FMU state: {e}")))
+    }
+
+    /// fmi2SetFMUstate: restores everything [`Instance::snapshot`] saved.
+    /// Nothing changes if the bytes are rejected.
+    pub(crate) fn restore(&mut self, bytes: &[u8]) -> Outcome {
+        let s = self.check_snapshot(bytes)?;
+        let rejected = |e: String| Fault::error(format!("rejected FMU state: {e}"));
+        let mut model = self.base.clone();
+        let mut tunables = Vec::new();
+        for (q, x) in self.parameter_quantities().zip(&s.parameters) {
+            match q {
+                Quantity::Setting(setting) => {
+                    setting.check(*x).map_err(rejected)?;
+                    setting.set(&mut model.integrator, *x);
+                }
+                Quantity::Parameter(p, j) => tunables.push((p, j, *x)),
+                _ => {}
+            }
+        }
+        // Tunable parameters go in after validation, as with fmi2SetReal:
+        // the saved values may break a relation that the next step reports.
+        let mut sim = Simulator::new(model.clone()).map_err(|e| rejected(e.to_string()))?;
+        for (p, j, x) in tunables {
+            model.set_parameter(p, j, x).map_err(|e| rejected(e.to_string()))?;
+            sim.set_parameter(p, j, x).map_err(|e| rejected(e.to_string()))?;
+        }
+        if s.lifecycle.is_running() {
+            sim.set_state(&s.state).map_err(|e| rejected(e.to_string()))?;
+        }
+        let Snapshot { lifecycle, start_time, stop_time, inputs, use_start_values, q_start, qd_start, .. } = s;
+        self.model = model;
+        self.sim = sim;
+        self.lifecycle = lifecycle;
+        self.start_time = start_time;
+        self.stop_time = stop_time;
+        self.inputs = inputs;
+        self.use_start_values = use_start_values;
+        self.q_start = q_start;
+        self.qd_start = qd_start;
+        self.stale = lifecycle.is_configuring();
+        Ok(Status::Ok)
+    }
+}

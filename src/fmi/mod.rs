@@ -1,0 +1,25 @@
+//! The FMI 2.0 co-simulation layer: a thin translation of FMI calls into
+//! [`Simulator`](crate::Simulator) calls. It checks every call and owns no
+//! physics. Three layers, as in the FMI Reference FMUs:
+//!
+//! * `exports` — the 34 exported `fmi2…` functions; each names the
+//!   life-cycle states that allow it and runs inside `boundary`, which turns
+//!   pointers into checked slices and panics into fmi2Error;
+//! * `instance` — one instance's life cycle (`lifecycle`), inputs,
+//!   parameters and simulator, in safe Rust; FMU states in the byte format of
+//!   `snapshot`;
+//! * [`description`] — the variables and value references of a model and
+//!   the `modelDescription.xml` built from them (shared with `build.rs` and
+//!   the `package_fmu` binary).
+
+mod boundary;
+pub mod description;
+mod exports;
+mod instance;
+mod lifecycle;
+mod logger;
+mod snapshot;
+mod status;
+pub mod uri;
+
+pub use exports::EXPORTED_FUNCTIONS;
