@@ -43,14 +43,17 @@ pub(crate) struct Instance {
     /// Before step mode: the engine must be (re)started from the current
     /// values before outputs are read.
     stale: bool,
+    /// Ignored higher input derivatives were reported (once per instance:
+    /// masters such as fmpy send them at every step).
+    ignored_derivatives_reported: bool,
     pub(crate) logger: Logger,
 }
 
 fn input_index(field: InputField) -> usize {
     match field {
-        InputField::QStar => 0,
-        InputField::QdStar => 1,
-        InputField::QddStar => 2,
+        InputField::Position => 0,
+        InputField::Velocity => 1,
+        InputField::Acceleration => 2,
     }
 }
 
@@ -121,6 +124,7 @@ impl Instance {
             q_start: vec![0.0; n],
             qd_start: vec![0.0; n],
             stale: true,
+            ignored_derivatives_reported: false,
             logger,
         };
         instance.reset().map_err(|f| f.message)?;
@@ -185,6 +189,7 @@ impl Instance {
         self.q_start = vec![0.0; n];
         self.qd_start = vec![0.0; n];
         self.stale = true;
+        self.ignored_derivatives_reported = false;
         Ok(Status::Ok)
     }
 
@@ -392,7 +397,8 @@ impl Instance {
     /// fmi2SetRealInputDerivatives: derivative `order` of input `q_star[i]`
     /// (1: q̇*, 2: q̈*) or `qd_star[i]` (1: q̈*) sets that input. Higher
     /// derivatives have no place in the engine's second-order input
-    /// polynomial: zero ones are accepted, others are ignored with a warning.
+    /// polynomial: zero ones are accepted, others are ignored with
+    /// fmi2Warning (the message is logged for the first one only).
     pub(crate) fn set_real_input_derivatives(
         &mut self,
         vrs: &[fmi2ValueReference],
@@ -427,14 +433,17 @@ impl Instance {
         if ignored.is_empty() {
             return Ok(Status::Ok);
         }
-        self.logger.log(
-            Status::Warning,
-            Category::StatusWarning,
-            &format!(
-                "fmi2SetRealInputDerivatives: ignored the derivative {}: the inputs are held as q* + q*' t + q*'' t^2/2 across a step",
-                ignored.join(", ")
-            ),
-        );
+        if !self.ignored_derivatives_reported {
+            self.ignored_derivatives_reported = true;
+            self.logger.log(
+                Status::Warning,
+                Category::StatusWarning,
+                &format!(
+                    "fmi2SetRealInputDerivatives: ignored the derivative {}: the inputs are held as q* + q*' t + q*'' t^2/2 across a step (reported once; later calls return fmi2Warning without a message)",
+                    ignored.join(", ")
+                ),
+            );
+        }
         Ok(Status::Warning)
     }
 

@@ -37,6 +37,10 @@ impl Category {
     }
 }
 
+/// The messages of a [`Logger::memory`]: status, category, text.
+#[cfg(test)]
+pub(crate) type MemoryLog = std::rc::Rc<std::cell::RefCell<Vec<(Status, &'static str, String)>>>;
+
 /// Where messages go.
 #[derive(Debug, Clone)]
 enum Sink {
@@ -48,7 +52,7 @@ enum Sink {
     },
     /// Kept in memory, for the unit tests.
     #[cfg(test)]
-    Memory(std::rc::Rc<std::cell::RefCell<Vec<(Status, &'static str, String)>>>),
+    Memory(MemoryLog),
 }
 
 /// The logger of one instance.
@@ -78,9 +82,9 @@ impl Logger {
 
     /// A logger that keeps its messages in the returned list.
     #[cfg(test)]
-    pub(crate) fn memory(logging_on: bool) -> (Logger, std::rc::Rc<std::cell::RefCell<Vec<(Status, &'static str, String)>>>) {
-        let list = std::rc::Rc::default();
-        (Logger::with_sink(Sink::Memory(std::rc::Rc::clone(&list)), logging_on), list)
+    pub(crate) fn memory(logging_on: bool) -> (Logger, MemoryLog) {
+        let list = MemoryLog::default();
+        (Logger::with_sink(Sink::Memory(MemoryLog::clone(&list)), logging_on), list)
     }
 
     /// fmi2SetDebugLogging: with no categories, switches the debug category

@@ -20,6 +20,8 @@ mod lifecycle;
 mod logger;
 mod snapshot;
 mod status;
+#[cfg(test)]
+mod tests;
 pub mod uri;
 
 pub use exports::EXPORTED_FUNCTIONS;

@@ -77,11 +77,11 @@ pub enum Type {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputField {
     /// q*, or the prescribed q of a rigid joint.
-    QStar,
+    Position,
     /// q̇*.
-    QdStar,
+    Velocity,
     /// q̈*.
-    QddStar,
+    Acceleration,
 }
 
 /// A fixed setting of the stepper.
@@ -333,17 +333,17 @@ fn joint_label(model: &Model, j: usize) -> String {
 
 fn inputs(b: &mut Builder, model: &Model) {
     let fields = [
-        (InputField::QStar, "q_star", "position"),
-        (InputField::QdStar, "qd_star", "velocity"),
-        (InputField::QddStar, "qdd_star", "acceleration"),
+        (InputField::Position, "q_star", "position"),
+        (InputField::Velocity, "qd_star", "velocity"),
+        (InputField::Acceleration, "qdd_star", "acceleration"),
     ];
     for (field, name, what) in fields {
         for (j, joint) in model.joints.iter().enumerate() {
             let u = joint_units(joint.kind);
             let unit = match field {
-                InputField::QStar => u.coordinate,
-                InputField::QdStar => u.rate,
-                InputField::QddStar => u.acceleration,
+                InputField::Position => u.coordinate,
+                InputField::Velocity => u.rate,
+                InputField::Acceleration => u.acceleration,
             };
             let role = match joint.drive {
                 Drive::Flexible { .. } => format!("Drive end {what} (q*, q*', q*'' of eq. 2.1)"),
