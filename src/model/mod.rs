@@ -5,6 +5,7 @@ mod joint;
 mod link;
 mod manipulator;
 mod parameter;
+mod presets;
 
 pub use file::REFERENCE_RRPR_TOML;
 pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};

@@ -73,6 +73,12 @@ impl Simulator {
             }
         }
         let nf = self.free.len();
+        // Friction loads are sums of absolute values: a Newton step across one
+        // of their kinks can overshoot and cycle. After a few plain Newton
+        // steps, a step that does not lower the residual's 2-norm is halved
+        // back towards the last accepted iterate.
+        const PLAIN_NEWTON_STEPS: usize = 6;
+        let mut accepted_merit = f64::INFINITY;
         for iteration in 1..=settings.max_iterations {
             for &i in &self.free {
                 let (s, st) = (&self.start, &mut self.state);
@@ -82,7 +88,7 @@ impl Simulator {
             forward_kinematics(&self.model, &mut self.data, &self.state.q);
             rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
             joint_reactions(&self.model, &mut self.data);
-            let residual = self.joint_forces();
+            let (residual, merit) = self.joint_forces();
             self.iterations += 1;
             if !residual.is_finite() {
                 return Err(StepError::NonFiniteState { time: t });
@@ -93,9 +99,19 @@ impl Simulator {
             if iteration == settings.max_iterations {
                 return Err(StepError::NotConverged { time: t, iterations: iteration, residual });
             }
+            if iteration > PLAIN_NEWTON_STEPS && merit >= accepted_merit {
+                for (k, &i) in self.free.iter().enumerate() {
+                    self.newton_step[k] *= 0.5;
+                    self.state.qdd[i] = self.accepted_qdd[k] + self.newton_step[k];
+                }
+                continue;
+            }
+            accepted_merit = merit;
             self.factor_newton_matrix(h, beta, gamma)?;
             lu::solve(&self.iteration_matrix, nf, &self.pivots, &mut self.correction[..nf]);
             for (k, &i) in self.free.iter().enumerate() {
+                self.accepted_qdd[k] = self.state.qdd[i];
+                self.newton_step[k] = self.correction[k];
                 self.state.qdd[i] += self.correction[k];
             }
         }
@@ -143,6 +159,9 @@ impl Simulator {
                 self.iteration_matrix[a * nf + b] += d * mu * (shifted - st.lever_load[s]) / step;
             }
         }
+        for k in 0..nf {
+            self.newton_diagonal[k] = self.iteration_matrix[k * nf + k];
+        }
         if lu::factor(&mut self.iteration_matrix[..nf * nf], nf, &mut self.pivots[..nf]) {
             Ok(())
         } else {
@@ -153,10 +172,12 @@ impl Simulator {
     /// Drive forces (2.1), contact loads and friction (3.11)–(3.15), phase
     /// margins (3.16) of every joint from the reactions in the workspace;
     /// fills the residuals of the free joints into `self.correction` and
-    /// returns the largest one relative to its joint's force scale.
-    fn joint_forces(&mut self) -> f64 {
+    /// returns the largest one relative to its joint's force scale, and the
+    /// sum of the squares of these relative residuals.
+    fn joint_forces(&mut self) -> (f64, f64) {
         let (model, data, st) = (&self.model, &self.data, &mut self.state);
         let mut worst: f64 = 0.0;
+        let mut merit = 0.0;
         let mut k = 0;
         for (i, joint) in model.joints.iter().enumerate() {
             let tau = data.tau[i];
@@ -199,7 +220,9 @@ impl Simulator {
                             // (3.9), (3.10): Σ D_si q̈_i + bias = F^d − F^f.
                             let residual = fd - friction - tau;
                             let scale = fd.abs() + friction.abs() + tau.abs() + joint_load_scale(data, joint, i);
-                            worst = worst.max(residual.abs() / scale.max(f64::MIN_POSITIVE));
+                            let relative = residual / scale.max(f64::MIN_POSITIVE);
+                            worst = worst.max(relative.abs());
+                            merit += relative * relative;
                             self.correction[k] = residual;
                             k += 1;
                         }
@@ -208,7 +231,7 @@ impl Simulator {
                 }
             }
         }
-        worst
+        (worst, merit)
     }
 }
 

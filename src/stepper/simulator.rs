@@ -58,8 +58,15 @@ pub struct Simulator {
     pub(crate) iteration_matrix: Vec<f64>,
     /// Row exchanges of its factorization.
     pub(crate) pivots: Vec<usize>,
+    /// Its diagonal before factorization: the effective inertia of each free
+    /// joint, inertia plus the growth of its friction with its acceleration.
+    pub(crate) newton_diagonal: Vec<f64>,
     /// Residuals, then corrections, of the free joints.
     pub(crate) correction: Vec<f64>,
+    /// Accelerations of the free joints at the last accepted Newton iterate.
+    pub(crate) accepted_qdd: Vec<f64>,
+    /// The Newton step taken from there (halved when it overshoots).
+    pub(crate) newton_step: Vec<f64>,
     /// Scratch joint vector.
     pub(crate) scratch: Vec<f64>,
     /// Joints whose phase was decided at the current instant.
@@ -86,7 +93,10 @@ impl Simulator {
             free: Vec::with_capacity(n),
             iteration_matrix: vec![0.0; n * n],
             pivots: vec![0; n],
+            newton_diagonal: vec![0.0; n],
             correction: vec![0.0; n],
+            accepted_qdd: vec![0.0; n],
+            newton_step: vec![0.0; n],
             scratch: vec![0.0; n],
             decided: vec![false; n],
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),

@@ -8,6 +8,8 @@ use crate::model::Drive;
 
 /// A transition is located to this fraction of the sub-step.
 const EVENT_RESOLUTION: f64 = 1e-7;
+/// How often a sub-step is halved when its iteration does not converge.
+const MAX_HALVINGS: usize = 12;
 /// Bound on the regula falsi iterations that locate a transition.
 const MAX_LOCATE_ITERATIONS: usize = 60;
 
@@ -24,12 +26,21 @@ impl Simulator {
         self.settle_phases()?;
         self.start.copy_from(&self.state);
         self.prepare_iteration_matrix();
-        self.solve(t_target)?;
+        let t0 = self.start.time;
+        let mut h = t_target - t0;
+        // Where the friction loads change their piecewise form the iteration
+        // may not settle; a shorter sub-step starts it closer to the solution.
+        let mut halvings = 0;
+        while let Err(e) = self.solve(t0 + h) {
+            if !matches!(e, StepError::NotConverged { .. }) || halvings == MAX_HALVINGS {
+                return Err(e);
+            }
+            halvings += 1;
+            h *= 0.5;
+        }
         let Some(joint) = self.earliest_crossing() else {
             return self.accept();
         };
-        let t0 = self.start.time;
-        let h = t_target - t0;
         let (mut lo, mut hi) = (0.0, 1.0);
         let (mut g_lo, mut g_hi) = (self.start.margin[joint], self.state.margin[joint]);
         let mut solved_at_hi = true;

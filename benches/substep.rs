@@ -1,0 +1,93 @@
+//! Cost of the Newmark sub-step: on the reference manipulator during the
+//! reference motion (stiction and slip phases), and on synthetic chains of
+//! growing length. Each sample advances one 1 ms interval (500 sub-steps of
+//! 2e-6 s) from a saved state; divide by 500 for the cost of a sub-step.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use std::hint::black_box;
+use stick_slip_manipulator::motion::reference_motion;
+use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
+
+const INTERVAL: f64 = 1e-3;
+
+/// A drive that produces (q*, q̇*, q̈*) at time t for every joint.
+type Drive = Box<dyn Fn(f64, &mut [f64], &mut [f64], &mut [f64])>;
+
+fn reference_drive() -> Drive {
+    let motion = reference_motion();
+    Box::new(move |t, q, qd, qdd| {
+        for (i, m) in motion.iter().enumerate() {
+            (q[i], qd[i], qdd[i]) = m.eval(t);
+        }
+    })
+}
+
+/// Every joint moves at a constant rate from a spread start pose.
+fn ramp_drive() -> Drive {
+    Box::new(|t, q, qd, qdd| {
+        for i in 0..q.len() {
+            qd[i] = 0.2 * if i % 2 == 0 { 1.0 } else { -1.0 };
+            q[i] = 0.1 * i as f64 + qd[i] * t;
+            qdd[i] = 0.0;
+        }
+    })
+}
+
+struct Bench {
+    sim: Simulator,
+    saved: State,
+    inputs: [Vec<f64>; 3],
+}
+
+/// Runs `model` under `drive` until `t`, then keeps that state.
+fn prepare(model: Model, drive: &Drive, t: f64) -> Bench {
+    let n = model.nq();
+    let mut sim = Simulator::new(model).unwrap();
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    drive(0.0, &mut q, &mut qd, &mut qdd);
+    sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None).unwrap();
+    let steps = (t / INTERVAL).round() as usize;
+    for k in 0..=steps {
+        drive(k as f64 * INTERVAL, &mut q, &mut qd, &mut qdd);
+        if k < steps {
+            sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, INTERVAL).unwrap();
+        }
+    }
+    let saved = sim.state().clone();
+    Bench { sim, saved, inputs: [q, qd, qdd] }
+}
+
+impl Bench {
+    fn interval(&mut self) {
+        self.sim.set_state(&self.saved).unwrap();
+        let [q, qd, qdd] = &self.inputs;
+        self.sim.advance(black_box(&DriveInputs { q_star: q, qd_star: qd, qdd_star: qdd }), INTERVAL).unwrap();
+    }
+}
+
+fn reference_manipulator(c: &mut Criterion) {
+    let mut group = c.benchmark_group("reference_interval_1ms");
+    group.throughput(Throughput::Elements(500));
+    let drive = reference_drive();
+    // t = 0.02: joints 1 and 3 stuck; 0.5: both slipping; 1.45: end of the
+    // motion, stick-slip transitions inside the interval.
+    for t in [0.02, 0.5, 1.45] {
+        let mut bench = prepare(Model::reference_rrpr(), &drive, t);
+        group.bench_function(BenchmarkId::from_parameter(format!("t={t}")), |b| b.iter(|| bench.interval()));
+    }
+    group.finish();
+}
+
+fn chain_growth(c: &mut Criterion) {
+    let mut group = c.benchmark_group("synthetic_chain_interval_1ms");
+    group.throughput(Throughput::Elements(500));
+    let drive = ramp_drive();
+    for n in [2, 4, 8, 16, 24] {
+        let mut bench = prepare(Model::synthetic_chain(n), &drive, 0.02);
+        group.bench_function(BenchmarkId::from_parameter(n), |b| b.iter(|| bench.interval()));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, reference_manipulator, chain_growth);
+criterion_main!(benches);
