@@ -20,18 +20,15 @@ pub(crate) fn holds_statically(joint: &Joint) -> bool {
 impl Simulator {
     /// Solves the state at the current time with the current phases, without
     /// advancing (a zero-length sub-step): used at initialization, at the start
-    /// of an interval and after a phase change.
+    /// of an interval and after a phase change. It also forgets the Newton
+    /// matrix and the predictor history, so that everything after it depends
+    /// only on the state and the inputs (an exact continuation after a state
+    /// is restored).
     pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
         self.start.copy_from(&self.state);
-        self.prepare_iteration_matrix();
+        self.newton_valid = false;
+        self.predictor_valid = false;
         self.solve(self.state.time)
-    }
-
-    /// Mass matrix at the configuration of the sub-step start: the iteration
-    /// matrix of every Newmark iteration of this sub-step is built from it.
-    pub(crate) fn prepare_iteration_matrix(&mut self) {
-        forward_kinematics(&self.model, &mut self.data, &self.start.q);
-        crba(&self.model, &mut self.data);
     }
 
     /// Solves the sub-step from `self.start` to time `t` with the phases in
@@ -39,10 +36,15 @@ impl Simulator {
     /// reactions, margins) and in the workspace.
     ///
     /// Newmark: q₁ = q₀ + h·q̇₀ + h²·((½ − β)·q̈₀ + β·q̈₁), q̇₁ = q̇₀ + h·((1 − γ)·q̈₀ + γ·q̈₁).
-    /// The unknowns q̈₁ of the slipping joints are corrected with the
-    /// iteration matrix M_ff + γh·H + βh²·K until the residual of (3.9),
+    /// The unknowns q̈₁ of the slipping joints start from q̈ extrapolated
+    /// from the last two sub-steps and are corrected with the Newton matrix
+    /// (see `factor_newton_matrix`) until the residual of (3.9),
     /// F^d − F^f − (M q̈ + bias), is below the tolerance relative to the
     /// joint's force scale: then accelerations, reactions and friction agree.
+    /// The Newton matrix is kept across sub-steps of the same length and
+    /// the same slipping joints (it changes by O(h) per sub-step, which only
+    /// slows convergence slightly) and rebuilt when an iteration needs more
+    /// than two corrections.
     pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
         let n = self.model.nq();
         let h = t - self.start.time;
@@ -50,6 +52,7 @@ impl Simulator {
         let (beta, gamma) = (settings.beta, settings.gamma);
         self.state.time = t;
         self.free.clear();
+        let extrapolation = if self.predictor_valid { h / self.previous_h } else { 0.0 };
         for i in 0..n {
             let (qs, qds, qdds) = self.inputs.eval(i, t);
             let st = &mut self.state;
@@ -68,11 +71,16 @@ impl Simulator {
                 }
                 Phase::Slipping(_) => {
                     self.free.push(i);
-                    st.qdd[i] = self.start.qdd[i];
+                    let a = self.start.qdd[i];
+                    st.qdd[i] = a + (a - self.previous_qdd[i]) * extrapolation;
                 }
             }
         }
         let nf = self.free.len();
+        let newton_fits = self.newton_valid && self.newton_h == h && self.newton_free[..] == self.free[..];
+        if !newton_fits {
+            self.newton_valid = false;
+        }
         // Friction loads are sums of absolute values: a Newton step across one
         // of their kinks can overshoot and cycle. After a few plain Newton
         // steps, a step that does not lower the residual's 2-norm is halved
@@ -107,7 +115,14 @@ impl Simulator {
                 continue;
             }
             accepted_merit = merit;
-            self.factor_newton_matrix(h, beta, gamma)?;
+            if !self.newton_valid || iteration > 2 {
+                crba(&self.model, &mut self.data);
+                self.factor_newton_matrix(h, beta, gamma)?;
+                self.newton_valid = true;
+                self.newton_h = h;
+                self.newton_free.clear();
+                self.newton_free.extend_from_slice(&self.free);
+            }
             lu::solve(&self.iteration_matrix, nf, &self.pivots, &mut self.correction[..nf]);
             for (k, &i) in self.free.iter().enumerate() {
                 self.accepted_qdd[k] = self.state.qdd[i];

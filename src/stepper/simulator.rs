@@ -58,6 +58,18 @@ pub struct Simulator {
     pub(crate) iteration_matrix: Vec<f64>,
     /// Row exchanges of its factorization.
     pub(crate) pivots: Vec<usize>,
+    /// True while the factored Newton matrix may be reused.
+    pub(crate) newton_valid: bool,
+    /// Sub-step length the Newton matrix was built for, s.
+    pub(crate) newton_h: f64,
+    /// Free joints the Newton matrix was built for.
+    pub(crate) newton_free: Vec<usize>,
+    /// q̈ at the start of the previous accepted sub-step, for the predictor.
+    pub(crate) previous_qdd: Vec<f64>,
+    /// Length of the previous accepted sub-step, s.
+    pub(crate) previous_h: f64,
+    /// True if `previous_qdd` belongs to the current phases and interval.
+    pub(crate) predictor_valid: bool,
     /// Its diagonal before factorization: the effective inertia of each free
     /// joint, inertia plus the growth of its friction with its acceleration.
     pub(crate) newton_diagonal: Vec<f64>,
@@ -93,6 +105,12 @@ impl Simulator {
             free: Vec::with_capacity(n),
             iteration_matrix: vec![0.0; n * n],
             pivots: vec![0; n],
+            newton_valid: false,
+            newton_h: 0.0,
+            newton_free: Vec::with_capacity(n),
+            previous_qdd: vec![0.0; n],
+            previous_h: 0.0,
+            predictor_valid: false,
             newton_diagonal: vec![0.0; n],
             correction: vec![0.0; n],
             accepted_qdd: vec![0.0; n],

@@ -25,7 +25,6 @@ impl Simulator {
         self.decided.fill(false);
         self.settle_phases()?;
         self.start.copy_from(&self.state);
-        self.prepare_iteration_matrix();
         let t0 = self.start.time;
         let mut h = t_target - t0;
         // Where the friction loads change their piecewise form the iteration
@@ -100,6 +99,9 @@ impl Simulator {
         if st.q.iter().chain(&st.qd).chain(&st.qdd).any(|x| !x.is_finite()) {
             return Err(StepError::NonFiniteState { time: st.time });
         }
+        self.previous_qdd.copy_from_slice(&s.qdd);
+        self.previous_h = st.time - s.time;
+        self.predictor_valid = true;
         let e = &mut st.energy;
         for (i, joint) in self.model.joints.iter().enumerate() {
             if st.phase[i] == Phase::Stuck {
