@@ -24,7 +24,8 @@ mod description;
 use std::path::Path;
 
 fn main() {
-    for path in ["build.rs", "models/reference_rrpr.toml", "src/model", "src/error.rs", "src/math.rs", "src/fmi/description"] {
+    let inputs = ["build.rs", "models/reference_rrpr.toml", "src/model", "src/error.rs", "src/math.rs", "src/fmi/description"];
+    for path in inputs {
         println!("cargo:rerun-if-changed={path}");
     }
     // fmi-sys compiles an exported `callback_log` helper into the crate; only
@@ -38,7 +39,8 @@ fn main() {
         Err(e) => panic!("models/reference_rrpr.toml: {e}"),
     };
     let xml = description::model_description_xml(&model, text);
-    let dir = Path::new(&std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR")).join("modelDescription");
+    let root = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
+    let dir = Path::new(&root).join("modelDescription");
     let file = dir.join("modelDescription.xml");
     // Rewrite only on change, so that the file's time stamp means something.
     if std::fs::read_to_string(&file).ok().as_deref() != Some(xml.as_str()) {

@@ -45,7 +45,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 println!("usage: package_fmu [--model FILE] [--lib FILE] [--out FILE]");
                 return Ok(());
             }
-            _ => return Err(format!("unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--out FILE])").into()),
+            _ => {
+                return Err(format!(
+                    "unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--out FILE])"
+                )
+                .into())
+            }
         }
     }
     let text = match &model_path {
@@ -54,7 +59,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     };
     let model = Model::from_toml_str(&text)
         .map_err(|e| format!("{}: {e}", model_path.as_deref().unwrap_or(Path::new("reference model")).display()))?;
-    let binary = std::fs::read(&lib).map_err(|e| format!("cannot read the library {}: {e} (run `cargo build --release` first)", lib.display()))?;
+    let binary = std::fs::read(&lib)
+        .map_err(|e| format!("cannot read the library {}: {e} (run `cargo build --release` first)", lib.display()))?;
     let xml = model_description_xml(&model, &text);
 
     if let Some(dir) = out.parent() {
@@ -64,7 +70,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let partial = out.with_extension("fmu.part");
     let mut zip = ZipWriter::new(std::fs::File::create(&partial)?);
     // Fixed time stamps: the same inputs give the same bytes.
-    let options = SimpleFileOptions::default().compression_method(CompressionMethod::Deflated).last_modified_time(DateTime::default());
+    let options = SimpleFileOptions::default()
+        .compression_method(CompressionMethod::Deflated)
+        .last_modified_time(DateTime::default());
     zip.start_file("modelDescription.xml", options)?;
     zip.write_all(xml.as_bytes())?;
     zip.start_file(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), options.unix_permissions(0o755))?;

@@ -158,9 +158,10 @@ pub unsafe extern "C" fn fmi2Instantiate(
             let guid = unsafe { text(fmuGUID, "fmuGUID") }.map_err(|f| f.message)?;
             let location = unsafe { text(fmuResourceLocation, "fmuResourceLocation") }.map_err(|f| f.message)?;
             let file = resource_path(location)?.join("model.toml");
-            let model_text =
-                std::fs::read_to_string(&file).map_err(|e| format!("cannot read the model file {}: {e}", file.display()))?;
-            let instance = Instance::new(&model_text, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
+            let model_text = std::fs::read_to_string(&file)
+                .map_err(|e| format!("cannot read the model file {}: {e}", file.display()))?;
+            let instance =
+                Instance::new(&model_text, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
             if instance.guid() != guid {
                 return Err(format!(
                     "fmuGUID {guid} does not match the FMU's resources (GUID {}): modelDescription.xml and resources/model.toml are from different FMUs",
@@ -227,7 +228,11 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
     stopTime: fmi2Real,
 ) -> fmi2Status {
     let stop = (stopTimeDefined != 0).then_some(stopTime);
-    unsafe { with_instance(c, "fmi2SetupExperiment", States::of(&[Instantiated]), |inst| inst.setup_experiment(startTime, stop)) }
+    unsafe {
+        with_instance(c, "fmi2SetupExperiment", States::of(&[Instantiated]), |inst| {
+            inst.setup_experiment(startTime, stop)
+        })
+    }
 }
 
 /// Instantiated.
@@ -237,7 +242,12 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
 #[no_mangle]
 pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
     unsafe {
-        with_instance(c, "fmi2EnterInitializationMode", States::of(&[Instantiated]), Instance::enter_initialization_mode)
+        with_instance(
+            c,
+            "fmi2EnterInitializationMode",
+            States::of(&[Instantiated]),
+            Instance::enter_initialization_mode,
+        )
     }
 }
 
@@ -248,7 +258,12 @@ pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2St
 #[no_mangle]
 pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
     unsafe {
-        with_instance(c, "fmi2ExitInitializationMode", States::of(&[InitializationMode]), Instance::exit_initialization_mode)
+        with_instance(
+            c,
+            "fmi2ExitInitializationMode",
+            States::of(&[InitializationMode]),
+            Instance::exit_initialization_mode,
+        )
     }
 }
 
@@ -284,7 +299,9 @@ pub unsafe extern "C" fn fmi2GetReal(
     value: *mut fmi2Real,
 ) -> fmi2Status {
     unsafe {
-        with_instance(c, "fmi2GetReal", GET, |inst| inst.get_real(slice(vr, nvr, "vr[]")?, slice_mut(value, nvr, "value[]")?))
+        with_instance(c, "fmi2GetReal", GET, |inst| {
+            inst.get_real(slice(vr, nvr, "vr[]")?, slice_mut(value, nvr, "value[]")?)
+        })
     }
 }
 
@@ -346,7 +363,11 @@ pub unsafe extern "C" fn fmi2SetReal(
     nvr: usize,
     value: *const fmi2Real,
 ) -> fmi2Status {
-    unsafe { with_instance(c, "fmi2SetReal", SET, |inst| inst.set_real(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?)) }
+    unsafe {
+        with_instance(c, "fmi2SetReal", SET, |inst| {
+            inst.set_real(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?)
+        })
+    }
 }
 
 /// No Integer variables: only nvr = 0 succeeds. States as fmi2SetReal.
@@ -375,7 +396,9 @@ pub unsafe extern "C" fn fmi2SetBoolean(
     value: *const fmi2Boolean,
 ) -> fmi2Status {
     unsafe {
-        with_instance(c, "fmi2SetBoolean", SET, |inst| inst.set_boolean(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?))
+        with_instance(c, "fmi2SetBoolean", SET, |inst| {
+            inst.set_boolean(slice(vr, nvr, "vr[]")?, slice(value, nvr, "value[]")?)
+        })
     }
 }
 
@@ -446,7 +469,11 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, FMUstate: *mut fmi2F
 /// # Safety
 /// See [`fmi2SetDebugLogging`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, FMUstate: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+    c: fmi2Component,
+    FMUstate: fmi2FMUstate,
+    size: *mut usize,
+) -> fmi2Status {
     unsafe {
         with_instance(c, "fmi2SerializedFMUstateSize", ANY, |_| {
             *out(size, "size")? = state(FMUstate)?.bytes.len();
@@ -546,7 +573,11 @@ pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
 ) -> fmi2Status {
     unsafe {
         with_instance(c, "fmi2SetRealInputDerivatives", SET, |inst| {
-            inst.set_real_input_derivatives(slice(vr, nvr, "vr[]")?, slice(order, nvr, "order[]")?, slice(value, nvr, "value[]")?)
+            inst.set_real_input_derivatives(
+                slice(vr, nvr, "vr[]")?,
+                slice(order, nvr, "order[]")?,
+                slice(value, nvr, "value[]")?,
+            )
         })
     }
 }
@@ -648,7 +679,11 @@ pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, 
 /// # Safety
 /// See [`fmi2SetDebugLogging`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetIntegerStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2Integer,
+) -> fmi2Status {
     unsafe { with_instance(c, "fmi2GetIntegerStatus", STATUS, |_| Err(no_status(s))) }
 }
 
@@ -658,7 +693,11 @@ pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKin
 /// # Safety
 /// See [`fmi2SetDebugLogging`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetBooleanStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
     unsafe {
         with_instance(c, "fmi2GetBooleanStatus", STATUS, |_| {
             if s != fmi2StatusKind_fmi2Terminated {
@@ -676,6 +715,10 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKin
 /// # Safety
 /// See [`fmi2SetDebugLogging`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetStringStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2String,
+) -> fmi2Status {
     unsafe { with_instance(c, "fmi2GetStringStatus", STATUS, |_| Err(no_status(s))) }
 }

@@ -206,7 +206,9 @@ impl Instance {
             return Err(Fault::error(format!("startTime = {start} s is not finite")));
         }
         if let Some(stop) = stop.filter(|s| !(s.is_finite() && *s >= start)) {
-            return Err(Fault::error(format!("stopTime = {stop} s is not a finite time at or after startTime = {start} s")));
+            return Err(Fault::error(format!(
+                "stopTime = {stop} s is not a finite time at or after startTime = {start} s"
+            )));
         }
         self.start_time = start;
         self.stop_time = stop;
@@ -231,7 +233,11 @@ impl Instance {
             let s = self.sim.state();
             let phases: Vec<String> =
                 s.phase.iter().enumerate().map(|(j, p)| format!("joint {} {}", j + 1, phase_name(*p))).collect();
-            self.logger.log(Status::Ok, Category::Events, &format!("t = {} s: initialized; {}", s.time, phases.join(", ")));
+            self.logger.log(
+                Status::Ok,
+                Category::Events,
+                &format!("t = {} s: initialized; {}", s.time, phases.join(", ")),
+            );
         }
         Ok(Status::Ok)
     }
@@ -241,7 +247,8 @@ impl Instance {
         if !self.stale {
             return Ok(());
         }
-        let mut sim = Simulator::new(self.model.clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
+        let mut sim =
+            Simulator::new(self.model.clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
         let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
         sim.initialize(self.start_time, &drive_inputs(&self.inputs), initial)
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
@@ -275,7 +282,8 @@ impl Instance {
     /// Before step mode, outputs come from starting the engine with the
     /// current values (initial unknowns).
     fn prepare_outputs(&mut self, vrs: &[fmi2ValueReference]) -> Result<(), Fault> {
-        let wants_output = || vrs.iter().any(|vr| self.variables.get(*vr as usize).is_some_and(|v| v.causality == Causality::Output));
+        let wants_output =
+            || vrs.iter().any(|vr| self.variables.get(*vr as usize).is_some_and(|v| v.causality == Causality::Output));
         if self.lifecycle.is_configuring() && wants_output() {
             self.start_engine()?;
         }
@@ -320,10 +328,9 @@ impl Instance {
     fn check_settable(&self, v: &Variable) -> Result<(), Fault> {
         match (v.causality, v.variability) {
             (Causality::Output, _) => Err(Fault::error(format!("`{}` is an output; outputs cannot be set", v.name))),
-            (Causality::Parameter, Variability::Fixed) if !self.lifecycle.is_configuring() => Err(Fault::error(format!(
-                "`{}` is a fixed parameter: it can be set only before fmi2ExitInitializationMode",
-                v.name
-            ))),
+            (Causality::Parameter, Variability::Fixed) if !self.lifecycle.is_configuring() => Err(Fault::error(
+                format!("`{}` is a fixed parameter: it can be set only before fmi2ExitInitializationMode", v.name),
+            )),
             _ => Ok(()),
         }
     }
@@ -416,7 +423,10 @@ impl Instance {
                 return Err(Fault::error(format!("derivative order {order} of `{}`: orders start at 1", v.name)));
             }
             if !x.is_finite() {
-                return Err(Fault::error(format!("derivative of order {order} of `{}` = {x} is not a finite number", v.name)));
+                return Err(Fault::error(format!(
+                    "derivative of order {order} of `{}` = {x} is not a finite number",
+                    v.name
+                )));
             }
             match input_index(field) + *order as usize {
                 k @ 0..=2 => updates.push((k, j, *x)),
@@ -473,9 +483,15 @@ impl Instance {
             }
             Err(StepError::InvalidModel { reason }) => {
                 self.sim.clear_transitions();
-                Err(Fault::error(format!("step from t = {now} s not taken: {reason}; correct the parameters and repeat the step")))
+                Err(Fault::error(format!(
+                    "step from t = {now} s not taken: {reason}; correct the parameters and repeat the step"
+                )))
             }
-            Err(e @ (StepError::NotConverged { .. } | StepError::SingularMassMatrix { .. } | StepError::NonFiniteState { .. })) => {
+            Err(
+                e @ (StepError::NotConverged { .. }
+                | StepError::SingularMassMatrix { .. }
+                | StepError::NonFiniteState { .. }),
+            ) => {
                 self.sim.clear_transitions();
                 self.lifecycle = LifeCycle::StepFailed;
                 self.logger.log(Status::Ok, Category::Events, &format!("t = {now} s: step of {h} s discarded ({e})"));
@@ -502,7 +518,11 @@ impl Instance {
                 self.logger.log(Status::Ok, Category::Events, &message);
             }
             if dropped > 0 {
-                self.logger.log(Status::Ok, Category::Events, &format!("... and {dropped} more phase changes in this step"));
+                self.logger.log(
+                    Status::Ok,
+                    Category::Events,
+                    &format!("... and {dropped} more phase changes in this step"),
+                );
             }
         }
         self.sim.clear_transitions();
@@ -517,7 +537,10 @@ impl Instance {
     // ---- FMU states ---------------------------------------------------------------
 
     fn parameter_quantities(&self) -> impl Iterator<Item = Quantity> + '_ {
-        self.variables.iter().map(|v| v.quantity).filter(|q| matches!(q, Quantity::Parameter(..) | Quantity::Setting(_)))
+        self.variables
+            .iter()
+            .map(|v| v.quantity)
+            .filter(|q| matches!(q, Quantity::Parameter(..) | Quantity::Setting(_)))
     }
 
     /// fmi2GetFMUstate: the serialized state.

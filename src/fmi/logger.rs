@@ -45,11 +45,7 @@ pub(crate) type MemoryLog = std::rc::Rc<std::cell::RefCell<Vec<(Status, &'static
 #[derive(Debug, Clone)]
 enum Sink {
     /// The master's `fmi2CallbackLogger`.
-    Callback {
-        callback: fmi2CallbackLogger,
-        environment: fmi2ComponentEnvironment,
-        instance_name: CString,
-    },
+    Callback { callback: fmi2CallbackLogger, environment: fmi2ComponentEnvironment, instance_name: CString },
     /// Kept in memory, for the unit tests.
     #[cfg(test)]
     Memory(MemoryLog),
@@ -129,7 +125,9 @@ impl Logger {
                 let category = CString::new(name).unwrap_or_default();
                 // SAFETY: the master's logger, given at fmi2Instantiate, takes
                 // these NUL-terminated strings, which outlive the call.
-                unsafe { callback(*environment, instance_name.as_ptr(), status.to_fmi(), category.as_ptr(), text.as_ptr()) }
+                unsafe {
+                    callback(*environment, instance_name.as_ptr(), status.to_fmi(), category.as_ptr(), text.as_ptr())
+                }
             }
             #[cfg(test)]
             Sink::Memory(list) => list.borrow_mut().push((status, name, message.to_string())),

@@ -97,7 +97,9 @@ pub(crate) fn decode(bytes: &[u8], model_hash: u128, n: usize, n_parameters: usi
         return Err("checksum mismatch: the bytes are corrupted".into());
     }
     if hash != model_hash {
-        return Err(format!("state of another model or FMU version (model hash {hash:032x}, this FMU has {model_hash:032x})"));
+        return Err(format!(
+            "state of another model or FMU version (model hash {hash:032x}, this FMU has {model_hash:032x})"
+        ));
     }
     let mut r = Reader { bytes: &body[HEADER..], at: 0 };
     let s = read_payload(&mut r, n, n_parameters)?;
@@ -338,7 +340,11 @@ mod tests {
         state.margin = vec![f64::INFINITY, next(), -0.0, next()];
         state.stick_count = vec![3, 0, u64::MAX, 1];
         state.phase = vec![Phase::Slipping(-1), Phase::Prescribed, Phase::Slipping(1), Phase::Prescribed];
-        state.reaction_force.iter_mut().chain(state.reaction_moment.iter_mut()).for_each(|v| *v = Vec3::new(next(), next(), next()));
+        state
+            .reaction_force
+            .iter_mut()
+            .chain(state.reaction_moment.iter_mut())
+            .for_each(|v| *v = Vec3::new(next(), next(), next()));
         state.energy = Energy {
             kinetic: next(),
             potential: next(),

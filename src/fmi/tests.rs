@@ -58,12 +58,27 @@ fn initialize(c: fmi2Component) {
 fn run(c: fmi2Component, t: f64, n: usize) -> Vec<u64> {
     let model = Model::reference_rrpr();
     let vars = variables(&model);
-    let reals: Vec<_> = vars.iter().filter(|v| matches!(v.ty, super::description::Type::Real { .. })).map(|v| v.value_reference).collect();
-    let bools: Vec<_> = vars.iter().filter(|v| matches!(v.ty, super::description::Type::Boolean { .. })).map(|v| v.value_reference).collect();
+    let reals: Vec<_> = vars
+        .iter()
+        .filter(|v| matches!(v.ty, super::description::Type::Real { .. }))
+        .map(|v| v.value_reference)
+        .collect();
+    let bools: Vec<_> = vars
+        .iter()
+        .filter(|v| matches!(v.ty, super::description::Type::Boolean { .. }))
+        .map(|v| v.value_reference)
+        .collect();
     let mut bits = Vec::new();
     for k in 0..n {
         let tk = t + k as f64 * 1e-3;
-        assert_eq!(set(c, &["q_star[1]", "qd_star[1]", "qdd_star[1]", "q_star[3]", "qd_star[3]"], &[0.3 * tk * tk, 0.6 * tk, 0.6, 0.01 * tk, 0.01]), OK);
+        assert_eq!(
+            set(
+                c,
+                &["q_star[1]", "qd_star[1]", "qdd_star[1]", "q_star[3]", "qd_star[3]"],
+                &[0.3 * tk * tk, 0.6 * tk, 0.6, 0.01 * tk, 0.01]
+            ),
+            OK
+        );
         assert_eq!(unsafe { fmi2DoStep(c, tk, 1e-3, 0) }, OK);
         let mut r = vec![0.0; reals.len()];
         let mut b = vec![0; bools.len()];
@@ -236,7 +251,10 @@ fn input_derivatives_set_the_rates_and_higher_ones_warn() {
     unsafe {
         assert_eq!(fmi2SetRealInputDerivatives(c, vrs.as_ptr(), 3, [1, 2, 1].as_ptr(), [0.1, 0.2, 0.3].as_ptr()), OK);
         assert_eq!(get(c, &["qd_star[1]", "qdd_star[1]", "qdd_star[3]"]), [0.1, 0.2, 0.3]);
-        assert_eq!(fmi2SetRealInputDerivatives(c, vrs.as_ptr(), 1, [3].as_ptr(), [1.0].as_ptr()), fmi2Status_fmi2Warning);
+        assert_eq!(
+            fmi2SetRealInputDerivatives(c, vrs.as_ptr(), 1, [3].as_ptr(), [1.0].as_ptr()),
+            fmi2Status_fmi2Warning
+        );
         assert_eq!(last_message(&log).1, "logStatusWarning");
         let q = [vr("q[1]")];
         assert_eq!(fmi2SetRealInputDerivatives(c, q.as_ptr(), 1, [1].as_ptr(), [1.0].as_ptr()), ERROR);
@@ -263,8 +281,9 @@ fn the_description_lists_value_references_in_order_with_unique_names() {
 
 #[test]
 fn build_rs_wrote_what_the_library_writes() {
-    let written = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription/modelDescription.xml"))
-        .expect("build.rs writes modelDescription/modelDescription.xml");
+    let written =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription/modelDescription.xml"))
+            .expect("build.rs writes modelDescription/modelDescription.xml");
     assert_eq!(written, model_description_xml(&Model::reference_rrpr(), REFERENCE_RRPR_TOML));
     assert!(written.contains(&format!("modelIdentifier=\"{MODEL_IDENTIFIER}\"")));
 }

@@ -22,7 +22,11 @@ pub fn resource_path(uri: &str) -> Result<PathBuf, String> {
 /// The path part after `file:`: `///p`, `//localhost/p` or `/p`.
 fn file_uri_path(rest: &str) -> Result<&str, String> {
     let Some(authority_and_path) = rest.strip_prefix("//") else {
-        return if rest.starts_with('/') { Ok(rest) } else { Err(format!("`file:{rest}` is not an absolute file URI")) };
+        return if rest.starts_with('/') {
+            Ok(rest)
+        } else {
+            Err(format!("`file:{rest}` is not an absolute file URI"))
+        };
     };
     let split = authority_and_path.find('/').unwrap_or(authority_and_path.len());
     let (host, path) = authority_and_path.split_at(split);
@@ -42,7 +46,9 @@ fn percent_decode(s: &str) -> Result<Vec<u8>, String> {
     while i < bytes.len() {
         if bytes[i] == b'%' {
             let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok());
-            let byte = hex.and_then(|h| u8::from_str_radix(h, 16).ok()).ok_or_else(|| format!("bad percent escape at byte {i}"))?;
+            let byte = hex
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .ok_or_else(|| format!("bad percent escape at byte {i}"))?;
             out.push(byte);
             i += 3;
         } else {

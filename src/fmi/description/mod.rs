@@ -16,8 +16,7 @@ mod writer;
 pub use hash::{fnv1a_64, Fnv1a128};
 pub use units::{Unit, UNITS};
 pub use variables::{
-    guid, model_hash, variables, Causality, Initial, InputField, Output, Quantity, Setting, Type, Variability,
-    Variable,
+    guid, model_hash, variables, Causality, Initial, InputField, Output, Quantity, Setting, Type, Variability, Variable,
 };
 pub use writer::model_description_xml;
 

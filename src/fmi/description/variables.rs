@@ -274,7 +274,14 @@ fn joint_units(kind: JointKind) -> JointUnits {
 struct Builder(Vec<Variable>);
 
 impl Builder {
-    fn push(&mut self, name: String, description: String, kind: (Causality, Variability), ty: Type, quantity: Quantity) {
+    fn push(
+        &mut self,
+        name: String,
+        description: String,
+        kind: (Causality, Variability),
+        ty: Type,
+        quantity: Quantity,
+    ) {
         let (causality, variability) = kind;
         let initial = match causality {
             Causality::Input => None,
@@ -312,7 +319,9 @@ pub fn variables(model: &Model) -> Vec<Variable> {
             Setting::HMax => (Some("s"), "Largest internal sub-step h_max of the Newmark stepper"),
             Setting::NewmarkBeta => (None, "Newmark beta (1/4: average acceleration)"),
             Setting::NewmarkGamma => (None, "Newmark gamma"),
-            Setting::Tolerance => (None, "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces"),
+            Setting::Tolerance => {
+                (None, "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces")
+            }
         };
         let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };
         b.push(s.name().into(), format!("{what}; fixed after initialization"), FIXED, ty, Quantity::Setting(s));
@@ -353,7 +362,13 @@ fn inputs(b: &mut Builder, model: &Model) {
                 "{role} of {}, at the start of the communication step; held as the polynomial q* + q*' t + q*'' t^2/2 across it",
                 joint_label(model, j)
             );
-            b.push(format!("{name}[{}]", j + 1), description, INPUT, real_start(Some(unit), 0.0), Quantity::Input(field, j));
+            b.push(
+                format!("{name}[{}]", j + 1),
+                description,
+                INPUT,
+                real_start(Some(unit), 0.0),
+                Quantity::Input(field, j),
+            );
         }
     }
 }
@@ -361,13 +376,22 @@ fn inputs(b: &mut Builder, model: &Model) {
 fn outputs(b: &mut Builder, model: &Model) {
     let n = model.nq();
     type PerJoint = (&'static str, fn(usize) -> Output, &'static str);
-    let per_joint: [PerJoint; 3] =
-        [("q", Output::Q, "Joint coordinate q"), ("qd", Output::Qd, "Joint velocity q'"), ("qdd", Output::Qdd, "Joint acceleration q''")];
+    let per_joint: [PerJoint; 3] = [
+        ("q", Output::Q, "Joint coordinate q"),
+        ("qd", Output::Qd, "Joint velocity q'"),
+        ("qdd", Output::Qdd, "Joint acceleration q''"),
+    ];
     for (k, (name, output, what)) in per_joint.into_iter().enumerate() {
         for j in 0..n {
             let u = joint_units(model.joints[j].kind);
             let unit = [u.coordinate, u.rate, u.acceleration][k];
-            b.push(format!("{name}[{}]", j + 1), format!("{what} of {}", joint_label(model, j)), OUTPUT, real(unit), Quantity::Output(output(j)));
+            b.push(
+                format!("{name}[{}]", j + 1),
+                format!("{what} of {}", joint_label(model, j)),
+                OUTPUT,
+                real(unit),
+                Quantity::Output(output(j)),
+            );
         }
     }
     for j in 0..n {
@@ -382,7 +406,13 @@ fn outputs(b: &mut Builder, model: &Model) {
     for j in 0..n {
         let force = joint_units(model.joints[j].kind).force;
         let label = joint_label(model, j);
-        b.push(format!("F_drive[{}]", j + 1), format!("Drive force F^d (2.1) of {label}; for a rigid drive the force it supplies"), OUTPUT, real(force), Quantity::Output(Output::DriveForce(j)));
+        b.push(
+            format!("F_drive[{}]", j + 1),
+            format!("Drive force F^d (2.1) of {label}; for a rigid drive the force it supplies"),
+            OUTPUT,
+            real(force),
+            Quantity::Output(Output::DriveForce(j)),
+        );
     }
     for j in 0..n {
         let force = joint_units(model.joints[j].kind).force;
@@ -432,11 +462,30 @@ fn outputs(b: &mut Builder, model: &Model) {
     }
     for j in 0..n {
         let unit = joint_units(model.joints[j].kind).coordinate;
-        b.push(format!("eps_joint[{}]", j + 1), format!("Lag eps_i = q*_i - q_i of {} behind its drive", joint_label(model, j)), OUTPUT, real(unit), Quantity::Output(Output::JointError(j)));
+        b.push(
+            format!("eps_joint[{}]", j + 1),
+            format!("Lag eps_i = q*_i - q_i of {} behind its drive", joint_label(model, j)),
+            OUTPUT,
+            real(unit),
+            Quantity::Output(Output::JointError(j)),
+        );
     }
-    b.push("eps".into(), "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it".into(), OUTPUT, real("m"), Quantity::Output(Output::EndPointError));
+    b.push(
+        "eps".into(),
+        "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it"
+            .into(),
+        OUTPUT,
+        real("m"),
+        Quantity::Output(Output::EndPointError),
+    );
     for k in 0..3 {
-        b.push(format!("x_E[{}]", k + 1), format!("Coordinate {} of the end point E in the base frame 0", k + 1), OUTPUT, real("m"), Quantity::Output(Output::EndPoint(k)));
+        b.push(
+            format!("x_E[{}]", k + 1),
+            format!("Coordinate {} of the end point E in the base frame 0", k + 1),
+            OUTPUT,
+            real("m"),
+            Quantity::Output(Output::EndPoint(k)),
+        );
     }
     let energies = [
         ("E_kin", Output::KineticEnergy, "Kinetic energy of the links"),
@@ -460,7 +509,9 @@ fn parameter_meaning(model: &Model, p: Parameter, j: usize) -> (Option<&'static 
         Parameter::Clearance => (Some(u.coordinate), "Drive clearance (backlash) Delta (2.1)"),
         Parameter::MuKinetic => (None, "Kinetic friction coefficient mu_k"),
         Parameter::MuStatic => (None, "Static friction coefficient mu_s (>= mu_k), stiction limit (3.16)"),
-        Parameter::StribeckVelocity => (Some(u.rate), "Stribeck velocity v_s of mu(v) = mu_k + (mu_s - mu_k) exp(-|v|/v_s); 0: constant mu_k"),
+        Parameter::StribeckVelocity => {
+            (Some(u.rate), "Stribeck velocity v_s of mu(v) = mu_k + (mu_s - mu_k) exp(-|v|/v_s); 0: constant mu_k")
+        }
         Parameter::SliderA => (Some("m"), "Slider length a along the axis (3.11)"),
         Parameter::SliderB => (Some("m"), "Slider cross-section b along x of the joint frame (3.11)"),
         Parameter::SliderC => (Some("m"), "Slider cross-section c along y of the joint frame (3.11)"),
@@ -472,7 +523,13 @@ fn parameter_meaning(model: &Model, p: Parameter, j: usize) -> (Option<&'static 
         Parameter::Mass => (Some("kg"), "Mass of the link moved by"),
     };
     let of = if p == Parameter::Mass { "" } else { " of" };
-    (unit, format!("{what}{of} {}; tunable between steps, relations (mu_s >= mu_k, ...) checked at the next step", joint_label(model, j)))
+    (
+        unit,
+        format!(
+            "{what}{of} {}; tunable between steps, relations (mu_s >= mu_k, ...) checked at the next step",
+            joint_label(model, j)
+        ),
+    )
 }
 
 fn parameters(b: &mut Builder, model: &Model) {

@@ -81,9 +81,14 @@ fn write_document(w: &mut Writer<Vec<u8>>, model: &Model, vars: &[Variable], gui
             write_log_categories(w)?;
             let (start, stop, step) = DEFAULT_EXPERIMENT;
             w.create_element("DefaultExperiment")
-                .with_attributes([("startTime", real(start).as_str()), ("stopTime", &real(stop)), ("stepSize", &real(step))])
+                .with_attributes([
+                    ("startTime", real(start).as_str()),
+                    ("stopTime", &real(stop)),
+                    ("stepSize", &real(step)),
+                ])
                 .write_empty()?;
-            w.create_element("ModelVariables").write_inner_content(|w| vars.iter().try_for_each(|v| write_variable(w, v)))?;
+            w.create_element("ModelVariables")
+                .write_inner_content(|w| vars.iter().try_for_each(|v| write_variable(w, v)))?;
             write_model_structure(w, vars)
         })?;
     Ok(())
@@ -114,7 +119,9 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             w.create_element("Unit").with_attribute(("name", unit.name)).write_inner_content(|w| {
                 let exponents = ["kg", "m", "s", "rad"].iter().zip(unit.base).filter(|(_, e)| *e != 0);
                 let attributes: Vec<(&str, String)> = exponents.map(|(name, e)| (*name, e.to_string())).collect();
-                w.create_element("BaseUnit").with_attributes(attributes.iter().map(|(k, v)| (*k, v.as_str()))).write_empty()?;
+                w.create_element("BaseUnit")
+                    .with_attributes(attributes.iter().map(|(k, v)| (*k, v.as_str())))
+                    .write_empty()?;
                 for (name, factor) in unit.display {
                     w.create_element("DisplayUnit")
                         .with_attributes([("name", *name), ("factor", real(*factor).as_str())])
@@ -131,7 +138,9 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     w.create_element("LogCategories").write_inner_content(|w| {
         for (name, description) in LOG_CATEGORIES {
-            w.create_element("Category").with_attributes([("name", name), ("description", description)]).write_empty()?;
+            w.create_element("Category")
+                .with_attributes([("name", name), ("description", description)])
+                .write_empty()?;
         }
         Ok(())
     })?;
@@ -193,7 +202,9 @@ fn write_model_structure(w: &mut Writer<Vec<u8>>, vars: &[Variable]) -> io::Resu
     w.create_element("ModelStructure").write_inner_content(|w| {
         w.create_element("Outputs").write_inner_content(|w| {
             for index in &outputs {
-                w.create_element("Unknown").with_attributes([("index", index.as_str()), ("dependencies", "")]).write_empty()?;
+                w.create_element("Unknown")
+                    .with_attributes([("index", index.as_str()), ("dependencies", "")])
+                    .write_empty()?;
             }
             Ok(())
         })?;
