@@ -20,6 +20,14 @@ pub struct Data {
     pub joint_rotation: Vec<Mat3>,
     /// Origin of the joint frame of joint i (frame i−1 origin shifted by d_i), m.
     pub joint_origin: Vec<Vec3>,
+    /// Centre of mass of link i in frame 0, m (joint array).
+    pub com: Vec<Vec3>,
+    /// Inertia tensor of link i about its centre of mass, frame 0 axes (joint array).
+    pub inertia: Vec<Mat3>,
+    /// (sin α_i, cos α_i) of the constant twists.
+    pub alpha_sin_cos: Vec<(f64, f64)>,
+    /// (sin θ_i, cos θ_i) of the constant angles of prismatic joints.
+    pub theta_sin_cos: Vec<(f64, f64)>,
     /// Angular velocity of link i, rad/s.
     pub omega: Vec<Vec3>,
     /// Angular acceleration of link i, rad/s².
@@ -56,6 +64,10 @@ impl Data {
             origin: vec![Vec3::zeros(); n + 1],
             joint_rotation: vec![Mat3::identity(); n],
             joint_origin: vec![Vec3::zeros(); n],
+            com: vec![Vec3::zeros(); n],
+            inertia: vec![Mat3::zeros(); n],
+            alpha_sin_cos: model.joints.iter().map(|j| j.dh.alpha.sin_cos()).collect(),
+            theta_sin_cos: model.joints.iter().map(|j| j.dh.theta.sin_cos()).collect(),
             omega: vec![Vec3::zeros(); n + 1],
             omega_dot: vec![Vec3::zeros(); n + 1],
             velocity: vec![Vec3::zeros(); n + 1],

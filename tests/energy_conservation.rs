@@ -35,7 +35,7 @@ fn total_energy_is_conserved_without_friction_and_damping() {
         worst = worst.max((e.total() - e0.total()).abs());
         kinetic_peak = kinetic_peak.max(e.kinetic);
         assert_eq!(e.friction_heat, 0.0);
-        assert_eq!(e.drive_work, 0.0, "held drive ends do no work");
+        assert!(e.drive_work.abs() < 1e-12 * exchanged, "held drive ends do no work: {} J", e.drive_work);
     }
     eprintln!("energy drift {:.3e} J of {:.3} J exchanged", worst, exchanged);
     assert!(kinetic_peak > 0.5 * exchanged, "the arm really oscillates");

@@ -42,10 +42,7 @@ pub fn crba(model: &Model, data: &mut Data) {
     let n = model.nq();
     let mut acc = Mat6::zeros();
     for i in (0..n).rev() {
-        let link = &model.links[i];
-        let rot = data.rotation[i + 1];
-        let c = data.origin[i + 1] + rot * link.com;
-        acc += spatial_inertia(link.mass, &c, &(rot * link.inertia * rot.transpose()));
+        acc += spatial_inertia(model.links[i].mass, &data.com[i], &data.inertia[i]);
         data.composite[i] = acc;
     }
     for j in 0..n {

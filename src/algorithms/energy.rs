@@ -11,9 +11,8 @@ pub fn kinetic_energy(model: &Model, data: &Data) -> f64 {
         .iter()
         .enumerate()
         .map(|(i, link)| {
-            let rot = data.rotation[i + 1];
-            let w = rot.transpose() * data.omega[i + 1];
-            0.5 * link.mass * data.com_velocity[i].norm_squared() + 0.5 * w.dot(&(link.inertia * w))
+            let w = data.omega[i + 1];
+            0.5 * link.mass * data.com_velocity[i].norm_squared() + 0.5 * w.dot(&(data.inertia[i] * w))
         })
         .sum()
 }
@@ -25,6 +24,6 @@ pub fn potential_energy(model: &Model, data: &Data) -> f64 {
         .links
         .iter()
         .enumerate()
-        .map(|(i, link)| -link.mass * model.gravity.dot(&(data.origin[i + 1] + data.rotation[i + 1] * link.com)))
+        .map(|(i, link)| -link.mass * model.gravity.dot(&data.com[i]))
         .sum()
 }

@@ -29,27 +29,36 @@ pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
     )
 }
 
-/// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n)
-/// and the joint frames for joint coordinates `q` (length n).
+/// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
+/// the joint frames, and every link's centre of mass and inertia in frame 0,
+/// for joint coordinates `q` (length n). `data` must have been built for
+/// `model` (it holds the sines and cosines of the constant DH angles).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     debug_assert_eq!(q.len(), model.nq());
     data.rotation[0] = Mat3::identity();
     data.origin[0] = Vec3::zeros();
     for (i, joint) in model.joints.iter().enumerate() {
-        let (theta, d) = dh_variables(joint, q[i]);
-        let (st, ct) = theta.sin_cos();
-        let (sa, ca) = joint.dh.alpha.sin_cos();
+        let (st, ct) = match joint.kind {
+            JointKind::Revolute => (joint.dh.theta + q[i]).sin_cos(),
+            JointKind::Prismatic => data.theta_sin_cos[i],
+        };
+        let d = dh_variables(joint, q[i]).1;
+        let (sa, ca) = data.alpha_sin_cos[i];
         let parent_r = data.rotation[i];
-        let parent_p = data.origin[i];
+        let (x, y, z) = (parent_r.column(0), parent_r.column(1), parent_r.column(2));
         // Joint frame: Rot_z(θ)·Trans_z(d) applied to frame i−1; z stays the joint axis.
-        let rz = Mat3::new(ct, -st, 0.0, st, ct, 0.0, 0.0, 0.0, 1.0);
-        let joint_r = parent_r * rz;
-        let joint_p = parent_p + parent_r.column(2) * d;
-        data.joint_rotation[i] = joint_r;
+        let jx = x * ct + y * st;
+        let jy = y * ct - x * st;
+        let joint_p = data.origin[i] + z * d;
+        data.joint_rotation[i] = Mat3::from_columns(&[jx, jy, z.into_owned()]);
         data.joint_origin[i] = joint_p;
-        let rx = Mat3::new(1.0, 0.0, 0.0, 0.0, ca, -sa, 0.0, sa, ca);
-        data.rotation[i + 1] = joint_r * rx;
-        data.origin[i + 1] = joint_p + joint_r.column(0) * joint.dh.a;
+        // Trans_x(a)·Rot_x(α).
+        let rot = Mat3::from_columns(&[jx, jy * ca + z * sa, z * ca - jy * sa]);
+        data.rotation[i + 1] = rot;
+        data.origin[i + 1] = joint_p + jx * joint.dh.a;
+        let link = &model.links[i];
+        data.com[i] = data.origin[i + 1] + rot * link.com;
+        data.inertia[i] = rot * link.inertia * rot.transpose();
     }
 }
 

@@ -53,12 +53,11 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     let mut n_next = Vec3::zeros();
     for i in (0..n).rev() {
         let link = &model.links[i];
-        let rot = data.rotation[i + 1];
         let (w, wd) = (data.omega[i + 1], data.omega_dot[i + 1]);
-        let c = rot * link.com;
+        let c = data.com[i] - data.origin[i + 1];
         data.com_velocity[i] = data.velocity[i + 1] + w.cross(&c);
         let a_c = data.acceleration[i + 1] + wd.cross(&c) + w.cross(&w.cross(&c));
-        let inertia = rot * link.inertia * rot.transpose();
+        let inertia = &data.inertia[i];
         let f_inertial = a_c * link.mass;
         let n_inertial = inertia * wd + w.cross(&(inertia * w));
         let r_joint = data.origin[i + 1] - data.origin[i];

@@ -40,8 +40,10 @@ pub fn contact_load(geometry: &ContactGeometry, f: &Vec3, n: &Vec3) -> ContactLo
 #[inline]
 pub fn bearing_loads(l_a: f64, l_b: f64, f: &Vec3, n: &Vec3) -> (f64, f64) {
     let l = l_a + l_b;
-    let r_a = (l_b * f.x - n.y).hypot(l_b * f.y + n.x) / l;
-    let r_b = (l_a * f.x + n.y).hypot(l_a * f.y - n.x) / l;
+    // Loads are far from overflow: a plain root is exact enough and cheaper than hypot.
+    let norm = |x: f64, y: f64| (x * x + y * y).sqrt();
+    let r_a = norm(l_b * f.x - n.y, l_b * f.y + n.x) / l;
+    let r_b = norm(l_a * f.x + n.y, l_a * f.y - n.x) / l;
     (r_a, r_b)
 }
 

@@ -95,7 +95,7 @@ impl Simulator {
                 st.q[i] = s.q[i] + h * s.qd[i] + h * h * ((0.5 - beta) * s.qdd[i] + beta * st.qdd[i]);
                 st.qd[i] = s.qd[i] + h * ((1.0 - gamma) * s.qdd[i] + gamma * st.qdd[i]);
             }
-            forward_kinematics(&self.model, &mut self.data, &self.state.q);
+            self.update_kinematics();
             rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
             joint_reactions(&self.model, &mut self.data);
             let (residual, merit) = self.joint_forces();
@@ -133,6 +133,18 @@ impl Simulator {
             }
         }
         unreachable!("the loop returns on its last iteration")
+    }
+
+    /// Forward kinematics of the current coordinates, skipped when they
+    /// differ from the last ones by rounding only (a Newton correction moves
+    /// q by βh²·Δq̈, often below 1e-15).
+    fn update_kinematics(&mut self) {
+        let moved = self.state.q.iter().zip(&self.kinematics_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
+        if moved || !self.kinematics_current {
+            forward_kinematics(&self.model, &mut self.data, &self.state.q);
+            self.kinematics_q.copy_from_slice(&self.state.q);
+            self.kinematics_current = true;
+        }
     }
 
     /// Builds and factors the Newton matrix of the free joints,

@@ -58,6 +58,10 @@ pub struct Simulator {
     pub(crate) iteration_matrix: Vec<f64>,
     /// Row exchanges of its factorization.
     pub(crate) pivots: Vec<usize>,
+    /// Coordinates of the kinematics in the workspace.
+    pub(crate) kinematics_q: Vec<f64>,
+    /// False when the workspace kinematics belong to other coordinates.
+    pub(crate) kinematics_current: bool,
     /// True while the factored Newton matrix may be reused.
     pub(crate) newton_valid: bool,
     /// Sub-step length the Newton matrix was built for, s.
@@ -105,6 +109,8 @@ impl Simulator {
             free: Vec::with_capacity(n),
             iteration_matrix: vec![0.0; n * n],
             pivots: vec![0; n],
+            kinematics_q: vec![0.0; n],
+            kinematics_current: false,
             newton_valid: false,
             newton_h: 0.0,
             newton_free: Vec::with_capacity(n),
@@ -329,6 +335,7 @@ impl Simulator {
         // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
         self.scratch.copy_from_slice(&st.q_star);
         forward_kinematics(model, &mut self.data, &self.scratch);
+        self.kinematics_current = false;
         st.end_point_rigid = end_point(model, &self.data);
     }
 
