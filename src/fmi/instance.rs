@@ -475,35 +475,37 @@ impl Instance {
             }
         }
         let result = self.sim.advance(&drive_inputs(&self.inputs), h);
+        if result.is_err() {
+            // Phase changes of a step that was not taken did not happen.
+            self.sim.clear_transitions();
+        }
         match result {
             Ok(()) => {
                 self.log_transitions();
                 self.lifecycle = LifeCycle::StepComplete;
                 Ok(Status::Ok)
             }
-            Err(StepError::InvalidModel { reason }) => {
-                self.sim.clear_transitions();
-                Err(Fault::error(format!(
-                    "step from t = {now} s not taken: {reason}; correct the parameters and repeat the step"
-                )))
-            }
+            // The step cannot be completed, and the engine left the state at
+            // its start: fmi2Discard, so that the master can react.
             Err(
-                e @ (StepError::NotConverged { .. }
+                e @ (StepError::InvalidModel { .. }
+                | StepError::NotConverged { .. }
                 | StepError::SingularMassMatrix { .. }
                 | StepError::NonFiniteState { .. }),
             ) => {
-                self.sim.clear_transitions();
                 self.lifecycle = LifeCycle::StepFailed;
                 self.logger.log(Status::Ok, Category::Events, &format!("t = {now} s: step of {h} s discarded ({e})"));
+                let remedy = match e {
+                    StepError::InvalidModel { .. } => "correct the parameters and repeat the step",
+                    _ => "repeat it with a shorter step or other inputs, or restore an FMU state",
+                };
                 Err(Fault::discard(format!(
-                    "step [{now}, {}] s not completed: {e}; the state stays at t = {now} s (fmi2LastSuccessfulTime)",
+                    "step [{now}, {}] s not completed: {e}; the state stays at t = {now} s (fmi2LastSuccessfulTime); {remedy}",
                     now + h
                 )))
             }
-            Err(e) => {
-                self.sim.clear_transitions();
-                Err(Fault::error(e.to_string()))
-            }
+            // Excluded by the checks above and in fmi2SetReal.
+            Err(e) => Err(Fault::error(e.to_string())),
         }
     }
 
