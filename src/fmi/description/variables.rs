@@ -319,9 +319,10 @@ pub fn variables(model: &Model) -> Vec<Variable> {
             Setting::HMax => (Some("s"), "Largest internal sub-step h_max of the Newmark stepper"),
             Setting::NewmarkBeta => (None, "Newmark beta (1/4: average acceleration)"),
             Setting::NewmarkGamma => (None, "Newmark gamma"),
-            Setting::Tolerance => {
-                (None, "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces")
-            }
+            Setting::Tolerance => (
+                None,
+                "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces (the tolerance argument of fmi2SetupExperiment is not used)",
+            ),
         };
         let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };
         b.push(s.name().into(), format!("{what}; fixed after initialization"), FIXED, ty, Quantity::Setting(s));
