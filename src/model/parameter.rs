@@ -1,7 +1,7 @@
 //! Checked access to the tunable parameters of a model.
 
 use super::manipulator::{check_value, Range};
-use super::{ContactGeometry, Drive, Model};
+use super::{ContactGeometry, Drive, Joint, Link, Model};
 use crate::error::ModelError;
 
 /// A scalar parameter of one joint (or of the link it moves) that may be
@@ -94,35 +94,7 @@ impl Model {
     /// if the joint does not have it (a rigid drive has no stiffness, a
     /// revolute joint no slider …).
     fn parameter_slot(&mut self, p: Parameter, joint: usize) -> Option<&mut f64> {
-        let link = self.links.get_mut(joint)?;
-        let j = self.joints.get_mut(joint)?;
-        if p == Parameter::Mass {
-            return Some(&mut link.mass);
-        }
-        if let Drive::Flexible { stiffness, damping, clearance } = &mut j.drive {
-            match p {
-                Parameter::Stiffness => return Some(stiffness),
-                Parameter::Damping => return Some(damping),
-                Parameter::Clearance => return Some(clearance),
-                _ => {}
-            }
-        }
-        let friction = j.friction.as_mut()?;
-        let c = &mut friction.coefficients;
-        match (p, &mut friction.geometry) {
-            (Parameter::MuKinetic, _) => Some(&mut c.mu_kinetic),
-            (Parameter::MuStatic, _) => Some(&mut c.mu_static),
-            (Parameter::StribeckVelocity, _) => Some(&mut c.stribeck_velocity),
-            (Parameter::SliderA, ContactGeometry::Slider { a, .. }) => Some(a),
-            (Parameter::SliderB, ContactGeometry::Slider { b, .. }) => Some(b),
-            (Parameter::SliderC, ContactGeometry::Slider { c, .. }) => Some(c),
-            (Parameter::DiameterA, ContactGeometry::Bearings { d_a, .. }) => Some(d_a),
-            (Parameter::DiameterB, ContactGeometry::Bearings { d_b, .. }) => Some(d_b),
-            (Parameter::DiameterC, ContactGeometry::Bearings { d_c, .. }) => Some(d_c),
-            (Parameter::LengthA, ContactGeometry::Bearings { l_a, .. }) => Some(l_a),
-            (Parameter::LengthB, ContactGeometry::Bearings { l_b, .. }) => Some(l_b),
-            _ => None,
-        }
+        slot(self.joints.get_mut(joint)?, self.links.get_mut(joint)?, p)
     }
 
     /// True if joint `joint` (0-based) has parameter `p`.
@@ -132,16 +104,9 @@ impl Model {
 
     /// Value of parameter `p` of joint `joint` (0-based), if it has one.
     pub fn parameter(&self, p: Parameter, joint: usize) -> Option<f64> {
-        // One lookup for reads and writes: a copy of the joint and link is cheap.
-        let mut one = Model {
-            name: String::new(),
-            joints: vec![*self.joints.get(joint)?],
-            links: vec![*self.links.get(joint)?],
-            gravity: self.gravity,
-            end_point: self.end_point,
-            integrator: self.integrator,
-        };
-        one.parameter_slot(p, 0).map(|v| *v)
+        // One lookup for reads and writes: joint and link are small copies.
+        let (mut j, mut link) = (*self.joints.get(joint)?, *self.links.get(joint)?);
+        slot(&mut j, &mut link, p).copied()
     }
 
     /// Sets parameter `p` of joint `joint` (0-based) after checking the value's
@@ -159,5 +124,36 @@ impl Model {
         check_value(&field, value, p.range())?;
         *slot = value;
         Ok(())
+    }
+}
+
+/// Where parameter `p` of joint `j` and the link it moves is stored.
+fn slot<'a>(j: &'a mut Joint, link: &'a mut Link, p: Parameter) -> Option<&'a mut f64> {
+    if p == Parameter::Mass {
+        return Some(&mut link.mass);
+    }
+    if let Drive::Flexible { stiffness, damping, clearance } = &mut j.drive {
+        match p {
+            Parameter::Stiffness => return Some(stiffness),
+            Parameter::Damping => return Some(damping),
+            Parameter::Clearance => return Some(clearance),
+            _ => {}
+        }
+    }
+    let friction = j.friction.as_mut()?;
+    let c = &mut friction.coefficients;
+    match (p, &mut friction.geometry) {
+        (Parameter::MuKinetic, _) => Some(&mut c.mu_kinetic),
+        (Parameter::MuStatic, _) => Some(&mut c.mu_static),
+        (Parameter::StribeckVelocity, _) => Some(&mut c.stribeck_velocity),
+        (Parameter::SliderA, ContactGeometry::Slider { a, .. }) => Some(a),
+        (Parameter::SliderB, ContactGeometry::Slider { b, .. }) => Some(b),
+        (Parameter::SliderC, ContactGeometry::Slider { c, .. }) => Some(c),
+        (Parameter::DiameterA, ContactGeometry::Bearings { d_a, .. }) => Some(d_a),
+        (Parameter::DiameterB, ContactGeometry::Bearings { d_b, .. }) => Some(d_b),
+        (Parameter::DiameterC, ContactGeometry::Bearings { d_c, .. }) => Some(d_c),
+        (Parameter::LengthA, ContactGeometry::Bearings { l_a, .. }) => Some(l_a),
+        (Parameter::LengthB, ContactGeometry::Bearings { l_b, .. }) => Some(l_b),
+        _ => None,
     }
 }
