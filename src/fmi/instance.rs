@@ -68,6 +68,8 @@ fn output_value(s: &State, o: Output) -> Value {
         Output::Qd(j) => s.qd[j],
         Output::Qdd(j) => s.qdd[j],
         Output::Stick(j) => return Value::Boolean(s.is_stuck(j)),
+        Output::StickCount(j) => s.stick_count[j] as f64,
+        Output::StuckTime(j) => s.stuck_time[j],
         Output::DriveForce(j) => s.drive_force[j],
         Output::FrictionForce(j) => s.friction_force[j],
         Output::NormalLoad(j) => s.normal_load[j],

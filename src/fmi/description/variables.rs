@@ -168,6 +168,10 @@ pub enum Output {
     Qdd(usize),
     /// True while the joint sticks.
     Stick(usize),
+    /// Number of stiction phases entered since initialization.
+    StickCount(usize),
+    /// Time spent stuck since initialization.
+    StuckTime(usize),
     /// Drive force F^d.
     DriveForce(usize),
     /// Friction force F^f.
@@ -402,6 +406,27 @@ fn outputs(b: &mut Builder, model: &Model) {
             (Causality::Output, Variability::Discrete),
             Type::Boolean { start: None },
             Quantity::Output(Output::Stick(j)),
+        );
+    }
+    for j in 0..n {
+        b.push(
+            format!("n_stick[{}]", j + 1),
+            format!(
+                "Number of stiction phases {} has entered since initialization, also those that began and ended inside a communication step (a joint that starts stuck counts one)",
+                joint_label(model, j)
+            ),
+            OUTPUT,
+            Type::Real { unit: None, min: None, max: None, start: None },
+            Quantity::Output(Output::StickCount(j)),
+        );
+    }
+    for j in 0..n {
+        b.push(
+            format!("t_stick[{}]", j + 1),
+            format!("Total time {} has spent in stiction phases since initialization", joint_label(model, j)),
+            OUTPUT,
+            real("s"),
+            Quantity::Output(Output::StuckTime(j)),
         );
     }
     for j in 0..n {
