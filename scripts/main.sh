@@ -4,12 +4,12 @@
 #
 #   1. cargo build --release
 #   2. FMU packaging hook: scripts/build_fmu.sh, if it exists
-#   3. cargo run --release --bin simulate_reference -- --out results/reference.csv
+#   3. python python/fmu_runner.py --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
 #   5. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
-# passed to simulate_reference after `--out FILE`.
+# passed to python/fmu_runner.py (e.g. --set mu_k[3]=0.1).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -32,9 +32,9 @@ if [ -f scripts/build_fmu.sh ]; then
     bash scripts/build_fmu.sh
 fi
 
-banner "simulate_reference -> $CSV"
-cargo run --release --bin simulate_reference -- --out "$CSV" "$@"
-[ -s "$CSV" ] || { echo "main.sh: simulate_reference wrote no $CSV" >&2; exit 1; }
+banner "reference motion through the FMU (fmpy) -> $CSV"
+python python/fmu_runner.py --out "$CSV" "$@"
+[ -s "$CSV" ] || { echo "main.sh: the FMU run wrote no $CSV" >&2; exit 1; }
 
 banner "plot_reference.py"
 python scripts/plot_reference.py "$CSV" "$RESULTS_DIR"

@@ -23,6 +23,7 @@ import math
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from ctypes import byref
 from pathlib import Path
@@ -32,18 +33,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
 
-# Reference motion (shared/reference-manipulator.md).
-MOTION_TIME = 1.5  # T of the cycloidal profiles, s
-RUN_TIME = 2.0  # the reference run, s
+# Reference motion (shared/reference-manipulator.md), shared with the main job.
+sys.path.insert(0, str(ROOT / "python"))
+from fmu_runner import MOTION_TIME, REFERENCE_PROFILES, RUN_TIME, cycloidal, reference_inputs  # noqa: E402
+
 INTERVAL = 1e-3  # communication step, s
 N_JOINTS = 4
 FLEXIBLE = (1, 3)  # 1-based joint indices with a flexible drive
-REFERENCE_PROFILES = (  # (start, end) of q1*, q2, q3*, q4
-    (0.0, math.pi / 3.0),
-    (0.0, math.pi / 12.0),
-    (0.8, 1.0),
-    (0.0, math.pi / 2.0),
-)
 
 INPUT_GROUPS = ("q_star", "qd_star", "qdd_star")
 
@@ -65,37 +61,6 @@ def require_fmu() -> Path:
 
 # ---------------------------------------------------------------------------
 # reference motion
-
-
-def cycloidal(start: float, end: float, t: float, duration: float = MOTION_TIME):
-    """(q, q', q'') of the cycloidal point-to-point profile at time t.
-
-    The same operations, in the same order, as ``Cycloidal::eval`` in
-    src/motion.rs (both call the C library's sin/cos), so the values are
-    bit-identical to the engine's.
-    """
-    tau2 = math.tau
-    d = end - start
-    if t <= 0.0:
-        return start, 0.0, 0.0
-    if t >= duration:
-        return end, 0.0, 0.0
-    tau = t / duration
-    s = tau - math.sin(tau2 * tau) / tau2
-    sd = (1.0 - math.cos(tau2 * tau)) / duration
-    sdd = tau2 * math.sin(tau2 * tau) / (duration * duration)
-    return start + d * s, d * sd, d * sdd
-
-
-def reference_inputs(t: float):
-    """(q*, q*', q*'') lists of the 4 joints at time t."""
-    q, qd, qdd = [], [], []
-    for start, end in REFERENCE_PROFILES:
-        a, b, c = cycloidal(start, end, t)
-        q.append(a)
-        qd.append(b)
-        qdd.append(c)
-    return q, qd, qdd
 
 
 def communication_times(end: float = RUN_TIME, interval: float = INTERVAL) -> np.ndarray:
