@@ -29,7 +29,7 @@ fn do_step(c: &mut Criterion) {
         e.iter().map(|x| x.0).chain(e.iter().map(|x| x.1)).chain(e.iter().map(|x| x.2)).collect()
     };
     let mut inst = import.instantiate_cs("bench", false, false).expect("fmi2Instantiate");
-    let mut start = |inst: &mut InstanceCS| {
+    let start = |inst: &mut InstanceCS| {
         inst.reset().expect("fmi2Reset");
         inst.setup_experiment(None, 0.0, None).expect("fmi2SetupExperiment");
         inst.enter_initialization_mode().expect("fmi2EnterInitializationMode");

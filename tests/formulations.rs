@@ -171,6 +171,21 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
 }
 
 #[test]
+fn recursive_frames_equal_the_products_of_eq_3_2() {
+    // B_i = A_1…A_i (3.2) as built by the Lagrange reference, against the
+    // frames of the recursive forward kinematics.
+    for (model, q, _, _) in configurations() {
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &q);
+        for i in 0..=model.nq() {
+            let recursive = stick_slip_manipulator::algorithms::kinematics::frame_transform(&data, i);
+            let product = b_derivative(&model, &q, i, &[]);
+            assert!((recursive - product).amax() < 1e-12, "{} B_{i}", model.name);
+        }
+    }
+}
+
+#[test]
 fn reference_manipulator_geometry_matches_its_description() {
     // shared/reference-manipulator.md: at q = (0, 0, 0.8, 0) the arm is
     // horizontal along +x0 and E is at (0.9, 0, 0.7); positive q2 tilts it up.

@@ -30,8 +30,8 @@ pub fn factor(a: &mut [f64], n: usize, pivots: &mut [usize]) -> bool {
 
 /// Solves A·x = b in place (`b` becomes x) with the factors from [`factor`].
 pub fn solve(lu: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
-    for k in 0..n {
-        b.swap(k, pivots[k]);
+    for (k, &p) in pivots[..n].iter().enumerate() {
+        b.swap(k, p);
     }
     for i in 0..n {
         let mut s = b[i];

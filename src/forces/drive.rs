@@ -21,9 +21,3 @@ pub fn spring_energy(stiffness: f64, clearance: f64, q_star: f64, q: f64) -> f64
     let stretch = ((q_star - q).abs() - clearance).max(0.0);
     0.5 * stiffness * stretch * stretch
 }
-
-/// The elastic part k·δ·(q* − q − σΔ) of eq. (2.1).
-#[inline]
-pub fn spring_force(stiffness: f64, clearance: f64, q_star: f64, q: f64) -> f64 {
-    drive_force(stiffness, 0.0, clearance, q_star, 0.0, q, 0.0)
-}

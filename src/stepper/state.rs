@@ -16,14 +16,6 @@ pub enum Phase {
     Slipping(i8),
 }
 
-impl Phase {
-    /// True while the joint has an equation of motion.
-    #[inline]
-    pub fn is_free(self) -> bool {
-        matches!(self, Phase::Slipping(_))
-    }
-}
-
 /// Everything that evolves, plus the reported quantities at the current time.
 /// Restoring a `State` restores the exact continuation.
 #[derive(Debug, Clone, PartialEq)]
