@@ -81,12 +81,18 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
 /// `data.reaction_moment[i]` (n_s, or n'_s).
 pub fn joint_reactions(model: &Model, data: &mut Data) {
     for i in 0..model.nq() {
-        let p = reaction_point(model, data, i);
-        let f = data.force[i];
-        // Moment about the reaction point from the moment about the frame i−1 origin.
-        let m = data.moment[i] + (data.origin[i] - p).cross(&f);
-        let rt = data.joint_rotation[i].transpose();
-        data.reaction_force[i] = rt * f;
-        data.reaction_moment[i] = rt * m;
+        joint_reaction(model, data, i);
     }
+}
+
+/// The reaction of joint `i` (0-based) only, as in [`joint_reactions`].
+#[inline]
+pub fn joint_reaction(model: &Model, data: &mut Data, i: usize) {
+    let p = reaction_point(model, data, i);
+    let f = data.force[i];
+    // Moment about the reaction point from the moment about the frame i−1 origin.
+    let m = data.moment[i] + (data.origin[i] - p).cross(&f);
+    let rt = data.joint_rotation[i].transpose();
+    data.reaction_force[i] = rt * f;
+    data.reaction_moment[i] = rt * m;
 }

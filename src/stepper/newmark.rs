@@ -6,7 +6,7 @@ use super::state::Phase;
 use crate::algorithms::crba::{crba, motion_subspace};
 use crate::algorithms::kinematics::{forward_kinematics, reaction_point};
 use crate::algorithms::lu;
-use crate::algorithms::rnea::{joint_reactions, rnea};
+use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::error::StepError;
 use crate::forces::drive::drive_force;
 use crate::forces::friction::contact_load;
@@ -25,7 +25,7 @@ impl Simulator {
     /// only on the state and the inputs (an exact continuation after a state
     /// is restored).
     pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
-        self.start.copy_from(&self.state);
+        self.start.copy_step_start(&self.state);
         self.newton_valid = false;
         self.predictor_valid = false;
         self.solve(self.state.time)
@@ -97,7 +97,13 @@ impl Simulator {
             }
             self.update_kinematics();
             rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
-            joint_reactions(&self.model, &mut self.data);
+            // Friction needs the reactions of the joints with friction; the
+            // others are reported at the end of the interval.
+            for i in 0..n {
+                if self.model.joints[i].friction.is_some() {
+                    joint_reaction(&self.model, &mut self.data, i);
+                }
+            }
             let (residual, merit) = self.joint_forces();
             self.iterations += 1;
             if !residual.is_finite() {
@@ -214,8 +220,6 @@ impl Simulator {
             let (normal, lever) = load.map_or((0.0, 0.0), |l| (l.normal, l.lever_load));
             st.normal_load[i] = normal;
             st.lever_load[i] = lever;
-            st.reaction_force[i] = data.reaction_force[i];
-            st.reaction_moment[i] = data.reaction_moment[i];
             let coefficients = joint.friction.map(|f| f.coefficients);
             match joint.drive {
                 Drive::Rigid => {

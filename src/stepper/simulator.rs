@@ -5,6 +5,7 @@ use super::inputs::{DriveInputs, InputPolynomial};
 use super::state::{Phase, State};
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use crate::algorithms::kinematics::{end_point, forward_kinematics};
+use crate::algorithms::rnea::joint_reactions;
 use crate::data::Data;
 use crate::error::{ModelError, StepError};
 use crate::forces::drive::spring_energy;
@@ -47,7 +48,8 @@ pub struct Simulator {
     pub(crate) model_checked: bool,
     pub(crate) data: Data,
     pub(crate) state: State,
-    /// Snapshot at the start of the current sub-step.
+    /// Snapshot at the start of the current sub-step: only the fields that
+    /// [`State::copy_step_start`] copies are current.
     pub(crate) start: State,
     /// Snapshot at the start of the current interval, restored on error.
     pub(crate) saved: State,
@@ -329,6 +331,9 @@ impl Simulator {
     /// energies and end points.
     pub(crate) fn update_reported(&mut self) {
         self.update_energies();
+        joint_reactions(&self.model, &mut self.data);
+        self.state.reaction_force.copy_from_slice(&self.data.reaction_force);
+        self.state.reaction_moment.copy_from_slice(&self.data.reaction_moment);
         let model = &self.model;
         let st = &mut self.state;
         st.end_point = end_point(model, &self.data);

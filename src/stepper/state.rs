@@ -176,6 +176,20 @@ impl State {
         self.end_point_rigid = *end_point_rigid;
     }
 
+    /// Copies what a sub-step reads of its start: time, q, q̇, q̈, q*, the
+    /// forces whose work is booked and the phase margins. Without allocating.
+    pub(crate) fn copy_step_start(&mut self, other: &State) {
+        self.time = other.time;
+        self.q.copy_from_slice(&other.q);
+        self.qd.copy_from_slice(&other.qd);
+        self.qdd.copy_from_slice(&other.qdd);
+        self.q_star.copy_from_slice(&other.q_star);
+        self.drive_force.copy_from_slice(&other.drive_force);
+        self.damping_force.copy_from_slice(&other.damping_force);
+        self.friction_force.copy_from_slice(&other.friction_force);
+        self.margin.copy_from_slice(&other.margin);
+    }
+
     /// Number of joints.
     pub fn nq(&self) -> usize {
         self.q.len()

@@ -24,7 +24,7 @@ impl Simulator {
         // marginal slip) is tried again at this one.
         self.decided.fill(false);
         self.settle_phases()?;
-        self.start.copy_from(&self.state);
+        self.start.copy_step_start(&self.state);
         let t0 = self.start.time;
         let mut h = t_target - t0;
         // Where the friction loads change their piecewise form the iteration
