@@ -303,3 +303,62 @@ fn the_guid_follows_the_model_file() {
     assert_ne!(guid, super::description::guid(&format!("{REFERENCE_RRPR_TOML}\n# edited\n"), &vars));
     assert_eq!(guid.len(), 38);
 }
+
+/// Allocations of the current thread only, so that tests running in other
+/// threads do not count.
+mod counting {
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    thread_local! {
+        pub static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+        pub static LIVE_BYTES: Cell<isize> = const { Cell::new(0) };
+    }
+
+    pub struct Counting;
+
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            ALLOCATIONS.with(|c| c.set(c.get() + 1));
+            LIVE_BYTES.with(|b| b.set(b.get() + layout.size() as isize));
+            unsafe { System.alloc(layout) }
+        }
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            LIVE_BYTES.with(|b| b.set(b.get() - layout.size() as isize));
+            unsafe { System.dealloc(ptr, layout) }
+        }
+    }
+
+    #[global_allocator]
+    static GLOBAL: Counting = Counting;
+}
+
+#[test]
+fn do_step_allocates_nothing_and_an_instance_is_small() {
+    // Heap owned by an instance of the reference model (logger without debug logging).
+    let before = counting::LIVE_BYTES.with(|b| b.get());
+    let (logger, _log) = Logger::memory(false);
+    let c = into_component(Instance::new(REFERENCE_RRPR_TOML, logger).expect("reference model"));
+    let heap = counting::LIVE_BYTES.with(|b| b.get()) - before;
+    assert!(heap > 0 && heap < 64 * 1024, "an instance owns {heap} bytes");
+    initialize(c);
+    let inputs = ["q_star[1]", "qd_star[1]", "q_star[3]", "qd_star[3]"];
+    let vrs: Vec<_> = inputs.iter().map(|n| vr(n)).collect();
+    let mut values = [0.0; 4];
+    let mut step = |k: usize| {
+        let t = k as f64 * 1e-3;
+        values.copy_from_slice(&[0.3 * t, 0.3, 0.8 + 0.05 * t, 0.05]);
+        unsafe {
+            assert_eq!(fmi2SetReal(c, vrs.as_ptr(), vrs.len(), values.as_ptr()), OK);
+            assert_eq!(fmi2DoStep(c, t, 1e-3, 0), OK);
+        }
+    };
+    step(0);
+    let start = counting::ALLOCATIONS.with(|a| a.get());
+    for k in 1..200 {
+        step(k);
+    }
+    let allocations = counting::ALLOCATIONS.with(|a| a.get()) - start;
+    assert_eq!(allocations, 0, "fmi2SetReal + fmi2DoStep allocated {allocations} times in 199 steps");
+    unsafe { fmi2FreeInstance(c) };
+}
