@@ -27,7 +27,7 @@ impl Simulator {
     pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
         self.start.copy_step_start(&self.state);
         self.newton_valid = false;
-        self.predictor_valid = false;
+        self.predictor_depth = 0;
         self.solve(self.state.time)
     }
 
@@ -37,7 +37,8 @@ impl Simulator {
     ///
     /// Newmark: q₁ = q₀ + h·q̇₀ + h²·((½ − β)·q̈₀ + β·q̈₁), q̇₁ = q̇₀ + h·((1 − γ)·q̈₀ + γ·q̈₁).
     /// The unknowns q̈₁ of the slipping joints start from q̈ extrapolated
-    /// from the last two sub-steps and are corrected with the Newton matrix
+    /// quadratically from the starts of this and the last two sub-steps (the
+    /// first evaluation then often meets the tolerance) and are corrected with the Newton matrix
     /// (see `factor_newton_matrix`) until the residual of (3.9),
     /// F^d − F^f − (M q̈ + bias), is below the tolerance relative to the
     /// joint's force scale: then accelerations, reactions and friction agree.
@@ -52,7 +53,17 @@ impl Simulator {
         let (beta, gamma) = (settings.beta, settings.gamma);
         self.state.time = t;
         self.free.clear();
-        let extrapolation = if self.predictor_valid { h / self.previous_h } else { 0.0 };
+        // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
+        let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
+        let weights = match self.predictor_depth {
+            0 => [1.0, 0.0, 0.0],
+            1 => [1.0 + h / h1, -h / h1, 0.0],
+            _ => [
+                (h + h1 + h2) * (h + h1) / ((h1 + h2) * h1),
+                -h * (h + h1 + h2) / (h1 * h2),
+                h * (h + h1) / (h2 * (h1 + h2)),
+            ],
+        };
         for i in 0..n {
             let (qs, qds, qdds) = self.inputs.eval(i, t);
             let st = &mut self.state;
@@ -71,8 +82,9 @@ impl Simulator {
                 }
                 Phase::Slipping(_) => {
                     self.free.push(i);
-                    let a = self.start.qdd[i];
-                    st.qdd[i] = a + (a - self.previous_qdd[i]) * extrapolation;
+                    st.qdd[i] = weights[0] * self.start.qdd[i]
+                        + weights[1] * self.previous_qdd[0][i]
+                        + weights[2] * self.previous_qdd[1][i];
                 }
             }
         }

@@ -70,12 +70,13 @@ pub struct Simulator {
     pub(crate) newton_h: f64,
     /// Free joints the Newton matrix was built for.
     pub(crate) newton_free: Vec<usize>,
-    /// q̈ at the start of the previous accepted sub-step, for the predictor.
-    pub(crate) previous_qdd: Vec<f64>,
-    /// Length of the previous accepted sub-step, s.
-    pub(crate) previous_h: f64,
-    /// True if `previous_qdd` belongs to the current phases and interval.
-    pub(crate) predictor_valid: bool,
+    /// q̈ at the starts of the last two accepted sub-steps, for the predictor.
+    pub(crate) previous_qdd: [Vec<f64>; 2],
+    /// Lengths of the last two accepted sub-steps, s.
+    pub(crate) previous_h: [f64; 2],
+    /// How many of the previous sub-steps belong to the current phases and
+    /// interval (0, 1 or 2).
+    pub(crate) predictor_depth: usize,
     /// Its diagonal before factorization: the effective inertia of each free
     /// joint, inertia plus the growth of its friction with its acceleration.
     pub(crate) newton_diagonal: Vec<f64>,
@@ -116,9 +117,9 @@ impl Simulator {
             newton_valid: false,
             newton_h: 0.0,
             newton_free: Vec::with_capacity(n),
-            previous_qdd: vec![0.0; n],
-            previous_h: 0.0,
-            predictor_valid: false,
+            previous_qdd: [vec![0.0; n], vec![0.0; n]],
+            previous_h: [0.0; 2],
+            predictor_depth: 0,
             newton_diagonal: vec![0.0; n],
             correction: vec![0.0; n],
             accepted_qdd: vec![0.0; n],
