@@ -6,7 +6,8 @@
 #   2. FMU packaging hook: scripts/build_fmu.sh, if it exists
 #   3. python python/fmu_runner.py --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
-#   5. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
+#   5. python python/study.py --out results/study   (the source study's five cases, docs/study.md)
+#   6. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
 # passed to python/fmu_runner.py (e.g. --set mu_k[3]=0.1).
@@ -38,6 +39,9 @@ python python/fmu_runner.py --out "$CSV" "$@"
 
 banner "plot_reference.py"
 python scripts/plot_reference.py "$CSV" "$RESULTS_DIR"
+
+banner "study.py: the source study's five cases through the FMU -> $RESULTS_DIR/study"
+python python/study.py --out "$RESULTS_DIR/study"
 
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python -m slow --runslow"
