@@ -8,7 +8,7 @@ use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::traits::FmiImport;
 use std::time::{Duration, Instant};
-use stick_slip_manipulator::motion::{reference_motion, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
 
 const STEP: f64 = 1e-3;
 
@@ -23,10 +23,9 @@ fn do_step(c: &mut Criterion) {
             inputs.push(md.model_variable_by_name(&format!("{group}[{i}]")).unwrap().value_reference);
         }
     }
-    let motion = reference_motion();
     let values_at = |t: f64| -> Vec<f64> {
-        let e: Vec<_> = motion.iter().map(|m| m.eval(t)).collect();
-        e.iter().map(|x| x.0).chain(e.iter().map(|x| x.1)).chain(e.iter().map(|x| x.2)).collect()
+        let (q, qd, qdd) = reference_inputs(t);
+        [q, qd, qdd].concat()
     };
     let mut inst = import.instantiate_cs("bench", false, false).expect("fmi2Instantiate");
     let start = |inst: &mut InstanceCS| {

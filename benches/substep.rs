@@ -5,7 +5,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
-use stick_slip_manipulator::motion::reference_motion;
+use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
 
 const INTERVAL: f64 = 1e-3;
@@ -14,11 +14,11 @@ const INTERVAL: f64 = 1e-3;
 type Drive = Box<dyn Fn(f64, &mut [f64], &mut [f64], &mut [f64])>;
 
 fn reference_drive() -> Drive {
-    let motion = reference_motion();
-    Box::new(move |t, q, qd, qdd| {
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
+    Box::new(|t, q, qd, qdd| {
+        let (a, b, c) = reference_inputs(t);
+        q.copy_from_slice(&a);
+        qd.copy_from_slice(&b);
+        qdd.copy_from_slice(&c);
     })
 }
 

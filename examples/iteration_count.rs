@@ -1,20 +1,13 @@
 //! Newmark iterations (inverse-dynamics evaluations) per sub-step over the
 //! reference motion: `cargo run --release --example iteration_count`.
-use stick_slip_manipulator::motion::{reference_motion, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 
 fn main() {
     let model = Model::reference_rrpr();
     let substeps = (REFERENCE_RUN_TIME / model.integrator.h_max).round();
     let mut sim = Simulator::new(model).unwrap();
-    let motion = reference_motion();
-    let at = |t: f64| {
-        let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
-        (q, qd, qdd)
-    };
+    let at = reference_inputs;
     let (q, qd, qdd) = at(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None).unwrap();
     let mut total = 0;

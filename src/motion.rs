@@ -43,5 +43,14 @@ pub fn reference_motion() -> [Cycloidal; 4] {
     [c(0.0, PI / 3.0), c(0.0, PI / 12.0), c(0.8, 1.0), c(0.0, PI / 2.0)]
 }
 
+/// (q*, q̇*, q̈*) of the four joints of the reference motion at time `t`.
+pub fn reference_inputs(t: f64) -> ([f64; 4], [f64; 4], [f64; 4]) {
+    let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
+    for (i, m) in reference_motion().iter().enumerate() {
+        (q[i], qd[i], qdd[i]) = m.eval(t);
+    }
+    (q, qd, qdd)
+}
+
 /// Duration of the reference run, s.
 pub const REFERENCE_RUN_TIME: f64 = 2.0;

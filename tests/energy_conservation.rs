@@ -9,7 +9,7 @@
 //! closes to 1e-6 of the drive work.
 
 use stick_slip_manipulator::model::Parameter;
-use stick_slip_manipulator::motion::reference_motion;
+use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, InitialState, Model, Simulator};
 
 #[test]
@@ -47,14 +47,7 @@ fn energy_account_closes_with_friction_and_damping() {
     let mut sim = Simulator::new(Model::reference_rrpr()).unwrap();
     sim.set_parameter(Parameter::Damping, 0, 1e3).unwrap();
     sim.set_parameter(Parameter::Damping, 2, 1e3).unwrap();
-    let motion = reference_motion();
-    let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-    let mut inputs_at = |t: f64| {
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
-        (q, qd, qdd)
-    };
+    let inputs_at = reference_inputs;
     let (a, b, c) = inputs_at(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &a, qd_star: &b, qdd_star: &c }, None).unwrap();
     let balance0 = sim.state().energy.balance();

@@ -21,7 +21,7 @@ use std::sync::OnceLock;
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::traits::{FmiImport, FmiStatus};
-use stick_slip_manipulator::motion::reference_motion;
+use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
 
 const STEP: f64 = 1e-3;
@@ -72,11 +72,7 @@ fn find_or_pack_fmu() -> Option<PathBuf> {
 
 /// The reference motion's inputs at t: q*, q̇*, q̈* of the 4 joints.
 fn inputs_at(t: f64) -> ([f64; 4], [f64; 4], [f64; 4]) {
-    let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-    for (i, m) in reference_motion().iter().enumerate() {
-        (q[i], qd[i], qdd[i]) = m.eval(t);
-    }
-    (q, qd, qdd)
+    reference_inputs(t)
 }
 
 /// The outputs of the FMU interface computed from an engine state, by variable name.

@@ -8,7 +8,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use stick_slip_manipulator::motion::reference_motion;
+use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 
 struct Counting;
@@ -41,14 +41,7 @@ fn stepping_allocates_nothing_and_a_simulator_is_small() {
     eprintln!("heap of a reference simulator: {heap} bytes");
     assert!(heap < 64 * 1024, "simulator owns {heap} bytes");
 
-    let motion = reference_motion();
-    let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-    let mut at = |t: f64| {
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
-        (q, qd, qdd)
-    };
+    let at = reference_inputs;
     let (a, b, c) = at(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &a, qd_star: &b, qdd_star: &c }, None).unwrap();
     let saved = sim.state().clone();

@@ -8,7 +8,7 @@
 //! stiction phases: transitions are located inside the sub-step, so the
 //! pattern does not depend on the step as it did in the study's Fig. 10.
 
-use stick_slip_manipulator::motion::{reference_motion, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 
 struct Run {
@@ -21,14 +21,7 @@ fn reference_run(h_max: f64) -> Run {
     let mut model = Model::reference_rrpr();
     model.integrator.h_max = h_max;
     let mut sim = Simulator::new(model).unwrap();
-    let motion = reference_motion();
-    let inputs_at = |t: f64| {
-        let (mut q, mut qd, mut qdd) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
-        (q, qd, qdd)
-    };
+    let inputs_at = reference_inputs;
     let (q, qd, qdd) = inputs_at(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None).unwrap();
     let interval = 1e-3;

@@ -4,7 +4,7 @@
 //!
 //! Usage: simulate_reference [--model FILE] [--out FILE] [--interval S] [--h-max S] [--end S]
 
-use stick_slip_manipulator::motion::{reference_motion, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 use std::io::Write;
 
@@ -41,18 +41,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         model.integrator.h_max = h;
     }
     let n = model.nq();
-    let motion = reference_motion();
-    if n != motion.len() {
+    if n != 4 {
         return Err(format!("the reference motion drives 4 joints, the model has {n}").into());
     }
     let mut sim = Simulator::new(model)?;
-    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let inputs_at = |t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]| {
-        for (i, m) in motion.iter().enumerate() {
-            (q[i], qd[i], qdd[i]) = m.eval(t);
-        }
-    };
-    inputs_at(0.0, &mut q, &mut qd, &mut qdd);
+    let (q, qd, qdd) = reference_inputs(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None)?;
     if let Some(dir) = std::path::Path::new(&out).parent() {
         std::fs::create_dir_all(dir)?;
@@ -64,7 +57,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let wall = std::time::Instant::now();
     for k in 0..steps {
         let t = k as f64 * interval;
-        inputs_at(t, &mut q, &mut qd, &mut qdd);
+        let (q, qd, qdd) = reference_inputs(t);
         sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, interval)?;
         write_row(&mut file, &sim)?;
     }
