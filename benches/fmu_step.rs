@@ -14,7 +14,11 @@ const STEP: f64 = 1e-3;
 
 fn do_step(c: &mut Criterion) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fmu/StickSlipManipulator.fmu");
-    assert!(path.is_file(), "{} is missing: run `bash scripts/build_fmu.sh` first", path.display());
+    if !path.is_file() {
+        // `cargo test --all-targets` runs this bench once before the FMU is packed.
+        eprintln!("SKIPPED: {} is missing: run `bash scripts/build_fmu.sh` first", path.display());
+        return;
+    }
     let import: Fmi2Import = fmi::import::from_path(&path).expect("import the FMU");
     let md = import.model_description();
     let mut inputs = Vec::new();
