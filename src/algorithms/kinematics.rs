@@ -34,7 +34,21 @@ pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
 /// for joint coordinates `q` (length n). `data` must have been built for
 /// `model` (it holds the sines and cosines of the constant DH angles).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
-    debug_assert_eq!(q.len(), model.nq());
+    let n = model.nq();
+    // One check up front lets the compiler drop the per-index bounds checks.
+    assert!(
+        q.len() == n
+            && model.links.len() == n
+            && data.rotation.len() == n + 1
+            && data.origin.len() == n + 1
+            && data.joint_rotation.len() == n
+            && data.joint_origin.len() == n
+            && data.com.len() == n
+            && data.inertia.len() == n
+            && data.alpha_sin_cos.len() == n
+            && data.theta_sin_cos.len() == n,
+        "forward_kinematics: data and q must be sized for the model"
+    );
     data.rotation[0] = Mat3::identity();
     data.origin[0] = Vec3::zeros();
     for (i, joint) in model.joints.iter().enumerate() {

@@ -18,6 +18,25 @@ use crate::model::{JointKind, Model};
 /// the backward loop the joint forces from joint n to 1.
 pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     let n = model.nq();
+    // One check up front lets the compiler drop the per-index bounds checks.
+    assert!(
+        qd.len() == n
+            && qdd.len() == n
+            && model.links.len() == n
+            && data.rotation.len() == n + 1
+            && data.origin.len() == n + 1
+            && data.omega.len() == n + 1
+            && data.omega_dot.len() == n + 1
+            && data.velocity.len() == n + 1
+            && data.acceleration.len() == n + 1
+            && data.com.len() == n
+            && data.inertia.len() == n
+            && data.com_velocity.len() == n
+            && data.force.len() == n
+            && data.moment.len() == n
+            && data.tau.len() == n,
+        "rnea: data, q̇ and q̈ must be sized for the model"
+    );
     data.omega[0] = Vec3::zeros();
     data.omega_dot[0] = Vec3::zeros();
     data.velocity[0] = Vec3::zeros();
