@@ -25,6 +25,15 @@ pub struct IntegratorSettings {
     pub max_iterations: usize,
 }
 
+impl IntegratorSettings {
+    /// Admissible range of Newmark β (both ends included).
+    pub const BETA_RANGE: (f64, f64) = (0.0, 0.5);
+    /// Admissible range of Newmark γ (both ends included).
+    pub const GAMMA_RANGE: (f64, f64) = (0.5, 1.0);
+    /// Largest admissible iteration tolerance; it must be positive.
+    pub const TOLERANCE_MAX: f64 = 1e-3;
+}
+
 impl Default for IntegratorSettings {
     fn default() -> Self {
         IntegratorSettings { h_max: 2e-6, beta: 0.25, gamma: 0.5, tolerance: 1e-10, max_iterations: 50 }
@@ -227,14 +236,17 @@ fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
 
 fn validate_integrator(s: &IntegratorSettings) -> Result<(), ModelError> {
     check_value("integrator.h_max", s.h_max, Range::Positive)?;
-    if !(0.0..=0.5).contains(&s.beta) {
-        return Err(invalid("integrator.beta", s.beta, "Newmark beta must lie in [0, 0.5]"));
+    let (b0, b1) = IntegratorSettings::BETA_RANGE;
+    if !(b0..=b1).contains(&s.beta) {
+        return Err(invalid("integrator.beta", s.beta, format!("Newmark beta must lie in [{b0}, {b1}]")));
     }
-    if !(0.5..=1.0).contains(&s.gamma) {
-        return Err(invalid("integrator.gamma", s.gamma, "Newmark gamma must lie in [0.5, 1]"));
+    let (g0, g1) = IntegratorSettings::GAMMA_RANGE;
+    if !(g0..=g1).contains(&s.gamma) {
+        return Err(invalid("integrator.gamma", s.gamma, format!("Newmark gamma must lie in [{g0}, {g1}]")));
     }
-    if !(s.tolerance > 0.0 && s.tolerance <= 1e-3) {
-        return Err(invalid("integrator.tolerance", s.tolerance, "must lie in (0, 1e-3]"));
+    let t1 = IntegratorSettings::TOLERANCE_MAX;
+    if !(s.tolerance > 0.0 && s.tolerance <= t1) {
+        return Err(invalid("integrator.tolerance", s.tolerance, format!("must lie in (0, {t1:e}]")));
     }
     if s.max_iterations == 0 || s.max_iterations > 10_000 {
         return Err(invalid("integrator.max_iterations", s.max_iterations as f64, "must lie in 1..=10000"));

@@ -137,9 +137,15 @@ impl Setting {
     fn bounds(self) -> (f64, Option<f64>, bool) {
         match self {
             Setting::HMax => (0.0, None, true),
-            Setting::NewmarkBeta => (0.0, Some(0.5), false),
-            Setting::NewmarkGamma => (0.5, Some(1.0), false),
-            Setting::Tolerance => (0.0, Some(1e-3), true),
+            Setting::NewmarkBeta => {
+                let (min, max) = IntegratorSettings::BETA_RANGE;
+                (min, Some(max), false)
+            }
+            Setting::NewmarkGamma => {
+                let (min, max) = IntegratorSettings::GAMMA_RANGE;
+                (min, Some(max), false)
+            }
+            Setting::Tolerance => (0.0, Some(IntegratorSettings::TOLERANCE_MAX), true),
         }
     }
 
