@@ -70,8 +70,12 @@ pub struct Simulator {
     pub(crate) newton_h: f64,
     /// Free joints the Newton matrix was built for.
     pub(crate) newton_free: Vec<usize>,
-    /// q̈ at the starts of the last two accepted sub-steps, for the predictor.
-    pub(crate) previous_qdd: [Vec<f64>; 2],
+    /// Refined q̈ (see [`Simulator::refine_acceleration`]) at the start of
+    /// the current sub-step and of the two before it, for the predictor.
+    pub(crate) qdd_history: [Vec<f64>; 3],
+    /// Refined q̈ of the last solved sub-step; enters the history when the
+    /// sub-step is accepted.
+    pub(crate) refined_qdd: Vec<f64>,
     /// Lengths of the last two accepted sub-steps, s.
     pub(crate) previous_h: [f64; 2],
     /// How many of the previous sub-steps belong to the current phases and
@@ -117,7 +121,8 @@ impl Simulator {
             newton_valid: false,
             newton_h: 0.0,
             newton_free: Vec::with_capacity(n),
-            previous_qdd: [vec![0.0; n], vec![0.0; n]],
+            qdd_history: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            refined_qdd: vec![0.0; n],
             previous_h: [0.0; 2],
             predictor_depth: 0,
             newton_diagonal: vec![0.0; n],

@@ -99,9 +99,9 @@ impl Simulator {
         if st.q.iter().chain(&st.qd).chain(&st.qdd).any(|x| !x.is_finite()) {
             return Err(StepError::NonFiniteState { time: st.time });
         }
-        // Keep the accelerations of the last two sub-step starts for the predictor.
-        self.previous_qdd.swap(0, 1);
-        self.previous_qdd[0].copy_from_slice(&s.qdd);
+        // The end of this sub-step is the start of the next one.
+        self.qdd_history.rotate_right(1);
+        self.qdd_history[0].copy_from_slice(&self.refined_qdd);
         self.previous_h = [st.time - s.time, self.previous_h[0]];
         self.predictor_depth = (self.predictor_depth + 1).min(2);
         let e = &mut st.energy;
