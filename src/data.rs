@@ -8,7 +8,11 @@ use crate::model::Model;
 ///
 /// Index conventions: frame arrays (`rotation`, `origin`, `omega`, …) have n+1
 /// entries, index 0 being the base frame 0; joint arrays have n entries, index
-/// i−1 for joint i. All vectors are in frame 0 unless the name says otherwise.
+/// i−1 for joint i. The frame-0 kinematics (`rotation` … `inertia`) come from
+/// [`forward_kinematics`](crate::algorithms::kinematics::forward_kinematics);
+/// the inverse dynamics works in the link frames from the DH transforms
+/// alone (`theta_sin_cos` … `link_offset`) and resolves every quantity of
+/// link i in frame i.
 #[derive(Debug, Clone)]
 pub struct Data {
     /// Rotation of frame i in frame 0, i = 0…n.
@@ -26,22 +30,23 @@ pub struct Data {
     pub inertia: Vec<Mat3>,
     /// (sin α_i, cos α_i) of the constant twists.
     pub alpha_sin_cos: Vec<(f64, f64)>,
-    /// (sin θ_i, cos θ_i) of the constant angles of prismatic joints.
+    /// (sin θ_i, cos θ_i) at the last joint coordinates (constant for
+    /// prismatic joints).
     pub theta_sin_cos: Vec<(f64, f64)>,
-    /// Angular velocity of link i, rad/s.
+    /// d_i at the last joint coordinates, m.
+    pub dh_d: Vec<f64>,
+    /// O_i − O_{i−1} resolved in frame i: (a_i, d_i·sin α_i, d_i·cos α_i), m.
+    pub link_offset: Vec<Vec3>,
+    /// Angular velocity of link i, frame i, rad/s.
     pub omega: Vec<Vec3>,
-    /// Angular acceleration of link i, rad/s².
+    /// Angular acceleration of link i, frame i, rad/s².
     pub omega_dot: Vec<Vec3>,
-    /// Velocity of the origin of frame i, m/s.
-    pub velocity: Vec<Vec3>,
-    /// Acceleration of the origin of frame i minus gravity, m/s².
+    /// Acceleration of the origin of frame i minus gravity, frame i, m/s².
     pub acceleration: Vec<Vec3>,
-    /// Velocity of the centre of mass of link i (joint array), m/s.
-    pub com_velocity: Vec<Vec3>,
-    /// Force f_i exerted by link i−1 on link i, N (joint array).
+    /// Force f_i exerted by link i−1 on link i, frame i, N (joint array).
     pub force: Vec<Vec3>,
     /// Moment n_i exerted by link i−1 on link i about the origin of frame
-    /// i−1, N·m (joint array).
+    /// i−1, frame i, N·m (joint array).
     pub moment: Vec<Vec3>,
     /// Generalized joint forces τ = M q̈ + bias of the last inverse dynamics.
     pub tau: Vec<f64>,
@@ -68,11 +73,11 @@ impl Data {
             inertia: vec![Mat3::zeros(); n],
             alpha_sin_cos: model.joints.iter().map(|j| j.dh.alpha.sin_cos()).collect(),
             theta_sin_cos: model.joints.iter().map(|j| j.dh.theta.sin_cos()).collect(),
+            dh_d: vec![0.0; n],
+            link_offset: vec![Vec3::zeros(); n],
             omega: vec![Vec3::zeros(); n + 1],
             omega_dot: vec![Vec3::zeros(); n + 1],
-            velocity: vec![Vec3::zeros(); n + 1],
             acceleration: vec![Vec3::zeros(); n + 1],
-            com_velocity: vec![Vec3::zeros(); n],
             force: vec![Vec3::zeros(); n],
             moment: vec![Vec3::zeros(); n],
             tau: vec![0.0; n],

@@ -14,9 +14,9 @@ mod common;
 use common::{random_chain, Rng};
 use stick_slip_manipulator::algorithms::crba::crba;
 use stick_slip_manipulator::algorithms::energy::{kinetic_energy, potential_energy};
-use stick_slip_manipulator::algorithms::kinematics::forward_kinematics;
+use stick_slip_manipulator::algorithms::kinematics::{forward_kinematics, reaction_point};
 use stick_slip_manipulator::algorithms::lagrange::{self, b_derivative};
-use stick_slip_manipulator::algorithms::rnea::rnea;
+use stick_slip_manipulator::algorithms::rnea::{joint_reaction, rnea};
 use stick_slip_manipulator::math::{Mat3, MatN, Vec3, Vec4, VecN};
 use stick_slip_manipulator::{Data, Model};
 
@@ -112,7 +112,7 @@ fn energies_agree_between_formulations() {
         let qd_v = VecN::from_column_slice(&qd);
         let quadratic = 0.5 * qd_v.dot(&(&data.mass_matrix * &qd_v));
         let t_33 = lagrange::kinetic_energy(&model, &q, &qd);
-        let t_rec = kinetic_energy(&model, &data);
+        let t_rec = kinetic_energy(&model, &data, &qd);
         assert!((t_33 - t_rec).abs() <= TOL * t_33, "T (3.3) {t_33} vs recursive {t_rec}");
         assert!((quadratic - t_rec).abs() <= TOL * t_33, "½q̇ᵀMq̇ {quadratic} vs recursive {t_rec}");
         let v_34 = lagrange::potential_energy(&model, &q);
@@ -164,8 +164,19 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
                 m += (x - p).cross(&force) + inertia * wd + w.cross(&(inertia * w));
             }
             let scale = f.norm().max(m.norm()).max(1.0);
-            assert!((data.force[s - 1] - f).norm() <= TOL * scale, "{} f_{s}: {} vs {}", model.name, data.force[s - 1], f);
-            assert!((data.moment[s - 1] - m).norm() <= TOL * scale, "{} n_{s}: {} vs {}", model.name, data.moment[s - 1], m);
+            // The recursion resolves them in frame s.
+            let (f_rec, m_rec) = (data.rotation[s] * data.force[s - 1], data.rotation[s] * data.moment[s - 1]);
+            assert!((f_rec - f).norm() <= TOL * scale, "{} f_{s}: {} vs {}", model.name, f_rec, f);
+            assert!((m_rec - m).norm() <= TOL * scale, "{} n_{s}: {} vs {}", model.name, m_rec, m);
+            // The reaction at the reaction reference point P in the joint frame,
+            // from the frame-0 geometry of eq. (3.2).
+            joint_reaction(&model, &mut data, s - 1);
+            let rt = data.joint_rotation[s - 1].transpose();
+            let point = reaction_point(&model, &data, s - 1);
+            let (f_joint, m_joint) = (rt * f, rt * (m + (p - point).cross(&f)));
+            let (rf, rm) = (data.reaction_force[s - 1], data.reaction_moment[s - 1]);
+            assert!((rf - f_joint).norm() <= TOL * scale, "{} reaction f_{s}: {rf} vs {f_joint}", model.name);
+            assert!((rm - m_joint).norm() <= TOL * scale, "{} reaction n_{s}: {rm} vs {m_joint}", model.name);
         }
     }
 }

@@ -1,20 +1,33 @@
-//! Kinetic and potential energy of the links from the recursive kinematics.
+//! Kinetic and potential energy of the links.
 
+use super::kinematics::{joint_axis_in_child, to_child};
 use crate::data::Data;
-use crate::model::Model;
+use crate::math::Vec3;
+use crate::model::{JointKind, Model};
 
-/// Kinetic energy T = Σ ½·m_i·|v_ci|² + ½·ω_iᵀ·I_i·ω_i of the links, from the
-/// velocities of the last [`rnea`](super::rnea::rnea) call, J.
-pub fn kinetic_energy(model: &Model, data: &Data) -> f64 {
-    model
-        .links
-        .iter()
-        .enumerate()
-        .map(|(i, link)| {
-            let w = data.omega[i + 1];
-            0.5 * link.mass * data.com_velocity[i].norm_squared() + 0.5 * w.dot(&(data.inertia[i] * w))
-        })
-        .sum()
+/// Kinetic energy T = Σ ½·m_i·|v_ci|² + ½·ω_iᵀ·I_i·ω_i of the links at joint
+/// velocities `qd` and the configuration of the last
+/// [`joint_transforms`](super::kinematics::joint_transforms), J. Velocities
+/// are carried outwards in the link frames as in the inverse dynamics.
+pub fn kinetic_energy(model: &Model, data: &Data, qd: &[f64]) -> f64 {
+    let (mut w, mut v) = (Vec3::zeros(), Vec3::zeros());
+    let mut t = 0.0;
+    for (i, (joint, link)) in model.joints.iter().zip(&model.links).enumerate() {
+        let p = data.link_offset[i];
+        match joint.kind {
+            JointKind::Revolute => {
+                w = to_child(data, i, &(w + Vec3::z() * qd[i]));
+                v = to_child(data, i, &v) + w.cross(&p);
+            }
+            JointKind::Prismatic => {
+                w = to_child(data, i, &w);
+                v = to_child(data, i, &v) + w.cross(&p) + joint_axis_in_child(data, i) * qd[i];
+            }
+        }
+        let v_c = v + w.cross(&link.com);
+        t += 0.5 * link.mass * v_c.norm_squared() + 0.5 * w.dot(&(link.inertia * w));
+    }
+    t
 }
 
 /// Potential energy of gravity V = −Σ m_i·gᵀ·x_ci, zero at the origin of

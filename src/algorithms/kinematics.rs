@@ -29,34 +29,92 @@ pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
     )
 }
 
+/// The joint-dependent parts of the DH transforms A_i (eq. 3.1) at joint
+/// coordinates `q`: (sin θ_i, cos θ_i) in `data.theta_sin_cos`, d_i in
+/// `data.dh_d` and the link offset p_i = O_i − O_{i−1} resolved in frame i,
+/// (a_i, d_i·sin α_i, d_i·cos α_i), in `data.link_offset`. This is all the
+/// recursive inverse dynamics needs: it works in the link frames.
+pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
+    let n = model.nq();
+    assert!(
+        q.len() == n
+            && data.theta_sin_cos.len() == n
+            && data.alpha_sin_cos.len() == n
+            && data.dh_d.len() == n
+            && data.link_offset.len() == n,
+        "joint_transforms: data and q must be sized for the model"
+    );
+    for (i, joint) in model.joints.iter().enumerate() {
+        // The constant θ of a prismatic joint keeps the sines cached by `Data::new`.
+        if joint.kind == JointKind::Revolute {
+            data.theta_sin_cos[i] = (joint.dh.theta + q[i]).sin_cos();
+        }
+        let d = dh_variables(joint, q[i]).1;
+        let (sa, ca) = data.alpha_sin_cos[i];
+        data.dh_d[i] = d;
+        data.link_offset[i] = Vec3::new(joint.dh.a, d * sa, d * ca);
+    }
+}
+
+/// R_iᵀ·v: a vector resolved in frame i−1 resolved in frame i, where
+/// R_i = Rot_z(θ_i)·Rot_x(α_i) is the rotation of A_i (joint `i` 0-based;
+/// from the last [`joint_transforms`]).
+#[inline]
+pub fn to_child(data: &Data, i: usize, v: &Vec3) -> Vec3 {
+    let (st, ct) = data.theta_sin_cos[i];
+    let (sa, ca) = data.alpha_sin_cos[i];
+    let (x, y) = (ct * v.x + st * v.y, ct * v.y - st * v.x);
+    Vec3::new(x, ca * y + sa * v.z, ca * v.z - sa * y)
+}
+
+/// R_i·v: a vector resolved in frame i resolved in frame i−1 (the inverse
+/// of [`to_child`]).
+#[inline]
+pub fn to_parent(data: &Data, i: usize, v: &Vec3) -> Vec3 {
+    let (st, ct) = data.theta_sin_cos[i];
+    let u = to_joint_frame(data, i, v);
+    Vec3::new(ct * u.x - st * u.y, st * u.x + ct * u.y, u.z)
+}
+
+/// Rot_x(α_i)·v: a vector resolved in frame i resolved in the joint frame of
+/// joint `i` (frame i−1 turned by θ_i; z the joint axis).
+#[inline]
+pub fn to_joint_frame(data: &Data, i: usize, v: &Vec3) -> Vec3 {
+    let (sa, ca) = data.alpha_sin_cos[i];
+    Vec3::new(v.x, ca * v.y - sa * v.z, sa * v.y + ca * v.z)
+}
+
+/// The axis z_{i−1} of joint `i` resolved in frame i: R_iᵀ·e_z = (0, sin α_i, cos α_i).
+#[inline]
+pub fn joint_axis_in_child(data: &Data, i: usize) -> Vec3 {
+    let (sa, ca) = data.alpha_sin_cos[i];
+    Vec3::new(0.0, sa, ca)
+}
+
 /// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
 /// the joint frames, and every link's centre of mass and inertia in frame 0,
-/// for joint coordinates `q` (length n). `data` must have been built for
-/// `model` (it holds the sines and cosines of the constant DH angles).
+/// for joint coordinates `q` (length n), after [`joint_transforms`] of the
+/// same `q`, which it calls. `data` must have been built for `model` (it
+/// holds the sines and cosines of the constant DH angles).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
+    joint_transforms(model, data, q);
     let n = model.nq();
     // One check up front lets the compiler drop the per-index bounds checks.
     assert!(
-        q.len() == n
-            && model.links.len() == n
+        model.links.len() == n
             && data.rotation.len() == n + 1
             && data.origin.len() == n + 1
             && data.joint_rotation.len() == n
             && data.joint_origin.len() == n
             && data.com.len() == n
-            && data.inertia.len() == n
-            && data.alpha_sin_cos.len() == n
-            && data.theta_sin_cos.len() == n,
-        "forward_kinematics: data and q must be sized for the model"
+            && data.inertia.len() == n,
+        "forward_kinematics: data must be sized for the model"
     );
     data.rotation[0] = Mat3::identity();
     data.origin[0] = Vec3::zeros();
     for (i, joint) in model.joints.iter().enumerate() {
-        let (st, ct) = match joint.kind {
-            JointKind::Revolute => (joint.dh.theta + q[i]).sin_cos(),
-            JointKind::Prismatic => data.theta_sin_cos[i],
-        };
-        let d = dh_variables(joint, q[i]).1;
+        let (st, ct) = data.theta_sin_cos[i];
+        let d = data.dh_d[i];
         let (sa, ca) = data.alpha_sin_cos[i];
         let parent_r = data.rotation[i];
         let (x, y, z) = (parent_r.column(0), parent_r.column(1), parent_r.column(2));
@@ -101,5 +159,25 @@ pub fn reaction_point(model: &Model, data: &Data, i: usize) -> Vec3 {
         Some(ContactGeometry::Bearings { reaction_point, .. }) => data.origin[i] + data.rotation[i] * reaction_point,
         Some(ContactGeometry::Slider { centre, .. }) => data.origin[i + 1] + data.rotation[i + 1] * centre,
         None => data.joint_origin[i],
+    }
+}
+
+/// O_{i−1} − P for joint `i` (0-based): from its reaction reference point P
+/// (see [`reaction_point`]) to the origin of frame i−1, resolved in the joint
+/// frame, from the last [`joint_transforms`]. The joint frame's origin is
+/// O_{i−1} + d_i·z_{i−1}; frame i's is that plus a_i along the joint frame's x.
+pub fn reaction_offset(model: &Model, data: &Data, i: usize) -> Vec3 {
+    use crate::model::ContactGeometry;
+    let d = data.dh_d[i];
+    match model.joints[i].friction.map(|f| f.geometry) {
+        // P given in frame i−1: turn it by −θ_i about z.
+        Some(ContactGeometry::Bearings { reaction_point: r, .. }) => {
+            let (st, ct) = data.theta_sin_cos[i];
+            -Vec3::new(ct * r.x + st * r.y, ct * r.y - st * r.x, r.z)
+        }
+        Some(ContactGeometry::Slider { centre, .. }) => {
+            Vec3::new(-model.joints[i].dh.a, 0.0, -d) - to_joint_frame(data, i, &centre)
+        }
+        None => Vec3::new(0.0, 0.0, -d),
     }
 }

@@ -1,18 +1,24 @@
 //! Recursive Newton–Euler inverse dynamics with joint reactions (Luh, Walker
-//! and Paul 1980, as cited by the study in section 3).
+//! and Paul 1980, as cited by the study in section 3), in the link frames:
+//! every quantity of link i is resolved in frame i, so the recursion needs
+//! only the DH transforms A_i of [`joint_transforms`](super::kinematics::joint_transforms)
+//! (a rotation by θ_i about z and one by α_i about x) and no frame-0 kinematics.
 
-use super::kinematics::reaction_point;
+use super::kinematics::{joint_axis_in_child, reaction_offset, to_child, to_joint_frame, to_parent};
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
 
 /// Inverse dynamics at the configuration of the last
-/// [`forward_kinematics`](super::kinematics::forward_kinematics) call.
+/// [`joint_transforms`](super::kinematics::joint_transforms) (or
+/// [`forward_kinematics`](super::kinematics::forward_kinematics)) call.
 ///
 /// `qd`, `qdd`: joint velocities and accelerations (length n). Gravity is the
 /// model's. Results: `data.tau` (τ = M q̈ + bias, length n), the joint forces
 /// `data.force[i]` and moments `data.moment[i]` (about the origin of frame
-/// i−1) exerted by link i−1 on link i, and the link velocities.
+/// i−1) exerted by link i−1 on link i, resolved in frame i, and the link
+/// angular velocities and accelerations and origin accelerations, each in its
+/// own frame.
 ///
 /// The forward loop carries velocities and accelerations from link 1 to n,
 /// the backward loop the joint forces from joint n to 1.
@@ -23,15 +29,12 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
         qd.len() == n
             && qdd.len() == n
             && model.links.len() == n
-            && data.rotation.len() == n + 1
-            && data.origin.len() == n + 1
+            && data.theta_sin_cos.len() == n
+            && data.alpha_sin_cos.len() == n
+            && data.link_offset.len() == n
             && data.omega.len() == n + 1
             && data.omega_dot.len() == n + 1
-            && data.velocity.len() == n + 1
             && data.acceleration.len() == n + 1
-            && data.com.len() == n
-            && data.inertia.len() == n
-            && data.com_velocity.len() == n
             && data.force.len() == n
             && data.moment.len() == n
             && data.tau.len() == n,
@@ -39,33 +42,30 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     );
     data.omega[0] = Vec3::zeros();
     data.omega_dot[0] = Vec3::zeros();
-    data.velocity[0] = Vec3::zeros();
     // Gravity enters as an upward acceleration of the base.
     data.acceleration[0] = -model.gravity;
     for i in 0..n {
-        let z: Vec3 = data.rotation[i].column(2).into();
-        let r = data.origin[i + 1] - data.origin[i];
+        let p = data.link_offset[i];
         let (w_prev, wd_prev) = (data.omega[i], data.omega_dot[i]);
-        let (w, wd, v, a) = match model.joints[i].kind {
+        let a_prev = to_child(data, i, &data.acceleration[i]);
+        let (w, wd, a) = match model.joints[i].kind {
             JointKind::Revolute => {
-                let w = w_prev + z * qd[i];
-                let wd = wd_prev + z * qdd[i] + w_prev.cross(&z) * qd[i];
-                (w, wd, data.velocity[i] + w.cross(&r), data.acceleration[i] + wd.cross(&r) + w.cross(&w.cross(&r)))
+                // In frame i−1: ω + z·q̇, ω̇ + z·q̈ + ω × z·q̇ with ω × z = (ω_y, −ω_x, 0).
+                let w_p = Vec3::new(w_prev.x, w_prev.y, w_prev.z + qd[i]);
+                let wd_p = Vec3::new(wd_prev.x + w_prev.y * qd[i], wd_prev.y - w_prev.x * qd[i], wd_prev.z + qdd[i]);
+                let (w, wd) = (to_child(data, i, &w_p), to_child(data, i, &wd_p));
+                (w, wd, a_prev + wd.cross(&p) + w.cross(&w.cross(&p)))
             }
             JointKind::Prismatic => {
-                // r = p_i − p_{i−1} turns with link i−1 and grows along z.
-                let v = data.velocity[i] + w_prev.cross(&r) + z * qd[i];
-                let a = data.acceleration[i]
-                    + wd_prev.cross(&r)
-                    + w_prev.cross(&w_prev.cross(&r))
-                    + w_prev.cross(&z) * (2.0 * qd[i])
-                    + z * qdd[i];
-                (w_prev, wd_prev, v, a)
+                // p = O_i − O_{i−1} turns with link i−1 and grows along the axis.
+                let (w, wd) = (to_child(data, i, &w_prev), to_child(data, i, &wd_prev));
+                let axis = joint_axis_in_child(data, i);
+                let a = a_prev + axis * qdd[i] + wd.cross(&p) + w.cross(&(w.cross(&p) + axis * (2.0 * qd[i])));
+                (w, wd, a)
             }
         };
         data.omega[i + 1] = w;
         data.omega_dot[i + 1] = wd;
-        data.velocity[i + 1] = v;
         data.acceleration[i + 1] = a;
     }
     let mut f_next = Vec3::zeros();
@@ -73,19 +73,20 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     for i in (0..n).rev() {
         let link = &model.links[i];
         let (w, wd) = (data.omega[i + 1], data.omega_dot[i + 1]);
-        let c = data.com[i] - data.origin[i + 1];
-        data.com_velocity[i] = data.velocity[i + 1] + w.cross(&c);
+        let c = link.com;
         let a_c = data.acceleration[i + 1] + wd.cross(&c) + w.cross(&w.cross(&c));
-        let inertia = &data.inertia[i];
         let f_inertial = a_c * link.mass;
-        let n_inertial = inertia * wd + w.cross(&(inertia * w));
-        let r_joint = data.origin[i + 1] - data.origin[i];
-        let f = f_inertial + f_next;
-        let m = n_inertial + (r_joint + c).cross(&f_inertial) + n_next + r_joint.cross(&f_next);
-        let z: Vec3 = data.rotation[i].column(2).into();
+        let n_inertial = link.inertia * wd + w.cross(&(link.inertia * w));
+        // The child's force, and its moment about O_i, resolved in frame i.
+        let (f_child, n_child) =
+            if i + 1 < n { (to_parent(data, i + 1, &f_next), to_parent(data, i + 1, &n_next)) } else { (f_next, n_next) };
+        let p = data.link_offset[i];
+        let f = f_inertial + f_child;
+        let m = n_inertial + (p + c).cross(&f_inertial) + n_child + p.cross(&f_child);
+        let axis = joint_axis_in_child(data, i);
         data.tau[i] = match model.joints[i].kind {
-            JointKind::Revolute => z.dot(&m),
-            JointKind::Prismatic => z.dot(&f),
+            JointKind::Revolute => axis.dot(&m),
+            JointKind::Prismatic => axis.dot(&f),
         };
         data.force[i] = f;
         data.moment[i] = m;
@@ -107,11 +108,9 @@ pub fn joint_reactions(model: &Model, data: &mut Data) {
 /// The reaction of joint `i` (0-based) only, as in [`joint_reactions`].
 #[inline]
 pub fn joint_reaction(model: &Model, data: &mut Data, i: usize) {
-    let p = reaction_point(model, data, i);
-    let f = data.force[i];
-    // Moment about the reaction point from the moment about the frame i−1 origin.
-    let m = data.moment[i] + (data.origin[i] - p).cross(&f);
-    let rt = data.joint_rotation[i].transpose();
-    data.reaction_force[i] = rt * f;
-    data.reaction_moment[i] = rt * m;
+    let f = to_joint_frame(data, i, &data.force[i]);
+    let m = to_joint_frame(data, i, &data.moment[i]);
+    // Moment about the reaction point P from the moment about O_{i−1}.
+    data.reaction_force[i] = f;
+    data.reaction_moment[i] = m + reaction_offset(model, data, i).cross(&f);
 }

@@ -4,7 +4,7 @@
 use super::simulator::Simulator;
 use super::state::Phase;
 use crate::algorithms::crba::{crba, motion_subspace};
-use crate::algorithms::kinematics::{forward_kinematics, reaction_point};
+use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, reaction_point};
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::error::StepError;
@@ -140,6 +140,9 @@ impl Simulator {
             }
             accepted_merit = merit;
             if !self.newton_valid || iteration > 2 {
+                // The mass matrix and the friction Jacobian need the frame-0
+                // kinematics, of the coordinates the inverse dynamics used.
+                forward_kinematics(&self.model, &mut self.data, &self.kinematics_q);
                 crba(&self.model, &mut self.data);
                 self.factor_newton_matrix(h, beta, gamma)?;
                 self.newton_valid = true;
@@ -178,13 +181,13 @@ impl Simulator {
         }
     }
 
-    /// Forward kinematics of the current coordinates, skipped when they
+    /// The DH transforms of the current coordinates, skipped when they
     /// differ from the last ones by rounding only (a Newton correction moves
     /// q by βh²·Δq̈, often below 1e-15).
     fn update_kinematics(&mut self) {
         let moved = self.state.q.iter().zip(&self.kinematics_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
         if moved || !self.kinematics_current {
-            forward_kinematics(&self.model, &mut self.data, &self.state.q);
+            joint_transforms(&self.model, &mut self.data, &self.state.q);
             self.kinematics_q.copy_from_slice(&self.state.q);
             self.kinematics_current = true;
         }

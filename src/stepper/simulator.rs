@@ -334,7 +334,7 @@ impl Simulator {
     }
 
     /// Recomputes the reported quantities that are not needed while stepping:
-    /// energies and end points.
+    /// energies, all joint reactions and end points.
     pub(crate) fn update_reported(&mut self) {
         self.update_energies();
         joint_reactions(&self.model, &mut self.data);
@@ -350,11 +350,14 @@ impl Simulator {
         st.end_point_rigid = end_point(model, &self.data);
     }
 
-    /// Kinetic, gravity and spring energy of the current state, from the
-    /// workspace of its evaluation.
+    /// Kinetic, gravity and spring energy of the current state; leaves the
+    /// frame-0 kinematics of the current coordinates in the workspace.
     fn update_energies(&mut self) {
         let (model, st) = (&self.model, &mut self.state);
-        st.energy.kinetic = kinetic_energy(model, &self.data);
+        forward_kinematics(model, &mut self.data, &st.q);
+        self.kinematics_q.copy_from_slice(&st.q);
+        self.kinematics_current = true;
+        st.energy.kinetic = kinetic_energy(model, &self.data, &st.qd);
         st.energy.potential = potential_energy(model, &self.data);
         st.energy.spring = model
             .joints
