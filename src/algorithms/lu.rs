@@ -30,6 +30,8 @@ pub fn factor(a: &mut [f64], n: usize, pivots: &mut [usize]) -> bool {
 
 /// Solves A·x = b in place (`b` becomes x) with the factors from [`factor`].
 pub fn solve(lu: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
+    // Slices of the used sizes let the compiler drop the per-index bounds checks.
+    let (lu, b) = (&lu[..n * n], &mut b[..n]);
     for (k, &p) in pivots[..n].iter().enumerate() {
         b.swap(k, p);
     }

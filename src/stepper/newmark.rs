@@ -8,7 +8,7 @@ use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, reacti
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::error::StepError;
-use crate::forces::drive::drive_force;
+use crate::forces::drive::drive_force as drive_force_of;
 use crate::forces::friction::contact_load;
 use crate::model::{Drive, Joint};
 
@@ -25,11 +25,11 @@ impl Simulator {
     /// only on the state and the inputs (an exact continuation after a state
     /// is restored).
     pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
-        self.start.copy_step_start(&self.state);
+        self.start.take_step_start(&mut self.state);
         self.newton_valid = false;
         self.predictor_depth = 0;
-        self.qdd_history[0].copy_from_slice(&self.state.qdd);
-        self.solve(self.state.time)?;
+        self.qdd_history[0].copy_from_slice(&self.start.qdd);
+        self.solve(self.start.time)?;
         self.qdd_history[0].copy_from_slice(&self.refined_qdd);
         Ok(())
     }
@@ -51,46 +51,11 @@ impl Simulator {
     /// slows convergence slightly) and rebuilt when an iteration needs more
     /// than two corrections.
     pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
-        let n = self.model.nq();
         let h = t - self.start.time;
         let settings = self.model.integrator;
         let (beta, gamma) = (settings.beta, settings.gamma);
         self.state.time = t;
-        self.free.clear();
-        // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
-        let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
-        let weights = match self.predictor_depth {
-            0 => [1.0, 0.0, 0.0],
-            1 => [1.0 + h / h1, -h / h1, 0.0],
-            _ => [
-                (h + h1 + h2) * (h + h1) / ((h1 + h2) * h1),
-                -h * (h + h1 + h2) / (h1 * h2),
-                h * (h + h1) / (h2 * (h1 + h2)),
-            ],
-        };
-        for i in 0..n {
-            let (qs, qds, qdds) = self.inputs.eval(i, t);
-            let st = &mut self.state;
-            st.q_star[i] = qs;
-            st.qd_star[i] = qds;
-            match st.phase[i] {
-                Phase::Prescribed => {
-                    st.q[i] = qs;
-                    st.qd[i] = qds;
-                    st.qdd[i] = qdds;
-                }
-                Phase::Stuck => {
-                    st.q[i] = self.start.q[i];
-                    st.qd[i] = 0.0;
-                    st.qdd[i] = 0.0;
-                }
-                Phase::Slipping(_) => {
-                    self.free.push(i);
-                    let [q0, q1, q2] = &self.qdd_history;
-                    st.qdd[i] = weights[0] * q0[i] + weights[1] * q1[i] + weights[2] * q2[i];
-                }
-            }
-        }
+        self.predict(t, h);
         let nf = self.free.len();
         // Grid sub-steps differ in length by rounding only.
         let newton_fits =
@@ -105,17 +70,19 @@ impl Simulator {
         const PLAIN_NEWTON_STEPS: usize = 6;
         let mut accepted_merit = f64::INFINITY;
         for iteration in 1..=settings.max_iterations {
-            for &i in &self.free {
+            {
                 let (s, st) = (&self.start, &mut self.state);
-                st.q[i] = s.q[i] + h * s.qd[i] + h * h * ((0.5 - beta) * s.qdd[i] + beta * st.qdd[i]);
-                st.qd[i] = s.qd[i] + h * ((1.0 - gamma) * s.qdd[i] + gamma * st.qdd[i]);
+                for &i in &self.free {
+                    st.q[i] = s.q[i] + h * s.qd[i] + h * h * ((0.5 - beta) * s.qdd[i] + beta * st.qdd[i]);
+                    st.qd[i] = s.qd[i] + h * ((1.0 - gamma) * s.qdd[i] + gamma * st.qdd[i]);
+                }
             }
             self.update_kinematics();
             rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
             // Friction needs the reactions of the joints with friction; the
             // others are reported at the end of the interval.
-            for i in 0..n {
-                if self.model.joints[i].friction.is_some() {
+            for (i, joint) in self.model.joints.iter().enumerate() {
+                if joint.friction.is_some() {
                     joint_reaction(&self.model, &mut self.data, i);
                 }
             }
@@ -158,6 +125,54 @@ impl Simulator {
             }
         }
         unreachable!("the loop returns on its last iteration")
+    }
+
+    /// Sets up the sub-step to time `t` (length `h`): the drive inputs at
+    /// `t`, the prescribed motion of rigid joints, stuck joints held at their
+    /// start, the list of free (slipping) joints and their predicted q̈:
+    /// the Lagrange extrapolation of the last three refined accelerations.
+    fn predict(&mut self, t: f64, h: f64) {
+        let n = self.model.nq();
+        // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
+        let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
+        let [w0, w1, w2] = match self.predictor_depth {
+            0 => [1.0, 0.0, 0.0],
+            1 => [1.0 + h / h1, -h / h1, 0.0],
+            _ => [
+                (h + h1 + h2) * (h + h1) / ((h1 + h2) * h1),
+                -h * (h + h1 + h2) / (h1 * h2),
+                h * (h + h1) / (h2 * (h1 + h2)),
+            ],
+        };
+        // Slices of length n let the compiler drop the per-index bounds checks.
+        let (s, st) = (&self.start, &mut self.state);
+        let (q, qd, qdd) = (&mut st.q[..n], &mut st.qd[..n], &mut st.qdd[..n]);
+        let (q_star, qd_star, phase) = (&mut st.q_star[..n], &mut st.qd_star[..n], &st.phase[..n]);
+        let start_q = &s.q[..n];
+        let [h0, h1, h2] = &self.qdd_history;
+        let (h0, h1, h2) = (&h0[..n], &h1[..n], &h2[..n]);
+        self.free.clear();
+        for i in 0..n {
+            let (qs, qds, qdds) = self.inputs.eval(i, t);
+            q_star[i] = qs;
+            qd_star[i] = qds;
+            match phase[i] {
+                Phase::Prescribed => {
+                    q[i] = qs;
+                    qd[i] = qds;
+                    qdd[i] = qdds;
+                }
+                Phase::Stuck => {
+                    q[i] = start_q[i];
+                    qd[i] = 0.0;
+                    qdd[i] = 0.0;
+                }
+                Phase::Slipping(_) => {
+                    self.free.push(i);
+                    qdd[i] = w0 * h0[i] + w1 * h1[i] + w2 * h2[i];
+                }
+            }
+        }
     }
 
     /// Stores in `self.refined_qdd` the accepted q̈ plus one more Newton
@@ -251,52 +266,62 @@ impl Simulator {
     /// sum of the squares of these relative residuals.
     fn joint_forces(&mut self) -> (f64, f64) {
         let (model, data, st) = (&self.model, &self.data, &mut self.state);
+        let n = model.nq();
+        // Slices of length n let the compiler drop the per-index bounds checks.
+        let (q, qd, q_star, qd_star, phase) = (&st.q[..n], &st.qd[..n], &st.q_star[..n], &st.qd_star[..n], &st.phase[..n]);
+        let (normal_load, lever_load) = (&mut st.normal_load[..n], &mut st.lever_load[..n]);
+        let (drive_force, damping_force) = (&mut st.drive_force[..n], &mut st.damping_force[..n]);
+        let (friction_force, margin) = (&mut st.friction_force[..n], &mut st.margin[..n]);
+        let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
+        let correction = &mut self.correction[..n];
         let mut worst: f64 = 0.0;
         let mut merit = 0.0;
         let mut k = 0;
-        for (i, joint) in model.joints.iter().enumerate() {
-            let tau = data.tau[i];
-            let load = joint.friction.map(|f| contact_load(&f.geometry, &data.reaction_force[i], &data.reaction_moment[i]));
-            let (normal, lever) = load.map_or((0.0, 0.0), |l| (l.normal, l.lever_load));
-            st.normal_load[i] = normal;
-            st.lever_load[i] = lever;
+        for (i, joint) in model.joints.iter().enumerate().take(n) {
+            let tau = tau[i];
+            let (normal, lever) = match joint.friction {
+                Some(f) => {
+                    let load = contact_load(&f.geometry, &reaction_force[i], &reaction_moment[i]);
+                    (load.normal, load.lever_load)
+                }
+                None => (0.0, 0.0),
+            };
+            normal_load[i] = normal;
+            lever_load[i] = lever;
             let coefficients = joint.friction.map(|f| f.coefficients);
             match joint.drive {
                 Drive::Rigid => {
                     // A rigid drive supplies the generalized force plus the friction it overcomes.
-                    let friction = coefficients.map_or(0.0, |c| c.kinetic(st.qd[i]) * lever * sign(st.qd[i]));
-                    st.friction_force[i] = friction;
-                    st.drive_force[i] = tau + friction;
-                    st.damping_force[i] = 0.0;
-                    st.margin[i] = f64::INFINITY;
+                    let friction = coefficients.map_or(0.0, |c| c.kinetic(qd[i]) * lever * sign(qd[i]));
+                    friction_force[i] = friction;
+                    drive_force[i] = tau + friction;
+                    damping_force[i] = 0.0;
+                    margin[i] = f64::INFINITY;
                 }
                 Drive::Flexible { stiffness, damping, clearance } => {
-                    let fd = drive_force(stiffness, damping, clearance, st.q_star[i], st.qd_star[i], st.q[i], st.qd[i]);
-                    st.drive_force[i] = fd;
-                    st.damping_force[i] = if (st.q_star[i] - st.q[i]).abs() < clearance {
-                        0.0
-                    } else {
-                        damping * (st.qd_star[i] - st.qd[i])
-                    };
+                    let fd = drive_force_of(stiffness, damping, clearance, q_star[i], qd_star[i], q[i], qd[i]);
+                    drive_force[i] = fd;
+                    damping_force[i] =
+                        if (q_star[i] - q[i]).abs() < clearance { 0.0 } else { damping * (qd_star[i] - qd[i]) };
                     let static_limit = coefficients.map_or(0.0, |c| c.mu_static) * lever;
-                    match st.phase[i] {
+                    match phase[i] {
                         Phase::Stuck => {
                             // (3.16)–(3.18): F* = τ is the axial reaction with the joint held.
-                            st.friction_force[i] = fd - tau;
-                            st.margin[i] = static_limit - (fd - tau).abs();
+                            friction_force[i] = fd - tau;
+                            margin[i] = static_limit - (fd - tau).abs();
                         }
                         Phase::Slipping(d) => {
                             let d = d as f64;
-                            let friction = coefficients.map_or(0.0, |c| c.kinetic(st.qd[i])) * lever * d;
-                            st.friction_force[i] = friction;
-                            st.margin[i] = if holds_statically(joint) { d * st.qd[i] } else { f64::INFINITY };
+                            let friction = coefficients.map_or(0.0, |c| c.kinetic(qd[i])) * lever * d;
+                            friction_force[i] = friction;
+                            margin[i] = if holds_statically(joint) { d * qd[i] } else { f64::INFINITY };
                             // (3.9), (3.10): Σ D_si q̈_i + bias = F^d − F^f.
                             let residual = fd - friction - tau;
                             let scale = fd.abs() + friction.abs() + tau.abs() + joint_load_scale(data, joint, i);
                             let relative = residual / scale.max(f64::MIN_POSITIVE);
                             worst = worst.max(relative.abs());
                             merit += relative * relative;
-                            self.correction[k] = residual;
+                            correction[k] = residual;
                             k += 1;
                         }
                         Phase::Prescribed => unreachable!("a flexible joint is never prescribed"),

@@ -49,7 +49,7 @@ pub struct Simulator {
     pub(crate) data: Data,
     pub(crate) state: State,
     /// Snapshot at the start of the current sub-step: only the fields that
-    /// [`State::copy_step_start`] copies are current.
+    /// [`State::take_step_start`] takes are current.
     pub(crate) start: State,
     /// Snapshot at the start of the current interval, restored on error.
     pub(crate) saved: State,
@@ -92,8 +92,12 @@ pub struct Simulator {
     pub(crate) newton_step: Vec<f64>,
     /// Scratch joint vector.
     pub(crate) scratch: Vec<f64>,
-    /// Joints whose phase was decided at the current instant.
-    pub(crate) decided: Vec<bool>,
+    /// For each joint, the instant (see `instant`) at which its phase was
+    /// last decided.
+    pub(crate) decided: Vec<u64>,
+    /// Number of the current instant of phase decisions; a new one starts
+    /// when time moves on, so no joint counts as decided there.
+    pub(crate) instant: u64,
     pub(crate) transitions: Vec<Transition>,
     pub(crate) transitions_dropped: usize,
     /// Newmark iterations of the last interval, for diagnostics.
@@ -130,7 +134,8 @@ impl Simulator {
             accepted_qdd: vec![0.0; n],
             newton_step: vec![0.0; n],
             scratch: vec![0.0; n],
-            decided: vec![false; n],
+            decided: vec![0; n],
+            instant: 1,
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
             transitions_dropped: 0,
             iterations: 0,
@@ -273,7 +278,7 @@ impl Simulator {
         }
         self.clear_transitions();
         self.evaluate()?;
-        self.decided.fill(false);
+        self.instant += 1;
         self.settle_phases()?;
         self.update_reported();
         self.initialized = true;
@@ -312,7 +317,7 @@ impl Simulator {
         // drives did the work of that jump of q* (or of a rigid joint's q, q̇).
         let before = self.state.energy.total();
         self.evaluate()?;
-        self.decided.fill(false);
+        self.instant += 1;
         self.settle_phases()?;
         self.update_energies();
         self.state.energy.drive_work += self.state.energy.total() - before;

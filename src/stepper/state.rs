@@ -176,18 +176,21 @@ impl State {
         self.end_point_rigid = *end_point_rigid;
     }
 
-    /// Copies what a sub-step reads of its start: time, q, q̇, q̈, q*, the
-    /// forces whose work is booked and the phase margins. Without allocating.
-    pub(crate) fn copy_step_start(&mut self, other: &State) {
+    /// Makes `self` the start of a sub-step from `other`, the current state:
+    /// takes its time and swaps in what a sub-step reads of its start (q, q̇,
+    /// q̈, q*, the forces whose work is booked and the phase margins) instead
+    /// of copying them. Those fields of `other` are left stale: solving the
+    /// sub-step overwrites every one of them.
+    pub(crate) fn take_step_start(&mut self, other: &mut State) {
         self.time = other.time;
-        self.q.copy_from_slice(&other.q);
-        self.qd.copy_from_slice(&other.qd);
-        self.qdd.copy_from_slice(&other.qdd);
-        self.q_star.copy_from_slice(&other.q_star);
-        self.drive_force.copy_from_slice(&other.drive_force);
-        self.damping_force.copy_from_slice(&other.damping_force);
-        self.friction_force.copy_from_slice(&other.friction_force);
-        self.margin.copy_from_slice(&other.margin);
+        std::mem::swap(&mut self.q, &mut other.q);
+        std::mem::swap(&mut self.qd, &mut other.qd);
+        std::mem::swap(&mut self.qdd, &mut other.qdd);
+        std::mem::swap(&mut self.q_star, &mut other.q_star);
+        std::mem::swap(&mut self.drive_force, &mut other.drive_force);
+        std::mem::swap(&mut self.damping_force, &mut other.damping_force);
+        std::mem::swap(&mut self.friction_force, &mut other.friction_force);
+        std::mem::swap(&mut self.margin, &mut other.margin);
     }
 
     /// Number of joints.

@@ -4,7 +4,6 @@
 use super::simulator::Simulator;
 use super::state::Phase;
 use crate::error::StepError;
-use crate::model::Drive;
 
 /// A transition is located to this fraction of the sub-step.
 const EVENT_RESOLUTION: f64 = 1e-7;
@@ -22,9 +21,9 @@ impl Simulator {
     pub(crate) fn substep(&mut self, t_target: f64) -> Result<(), StepError> {
         // A phase change that could not happen at the previous instant (a
         // marginal slip) is tried again at this one.
-        self.decided.fill(false);
+        self.instant += 1;
         self.settle_phases()?;
-        self.start.copy_step_start(&self.state);
+        self.start.take_step_start(&mut self.state);
         let t0 = self.start.time;
         let mut h = t_target - t0;
         // Where the friction loads change their piecewise form the iteration
@@ -69,7 +68,7 @@ impl Simulator {
             self.solve(t0 + hi * h)?;
         }
         self.accept()?;
-        self.decided.fill(false);
+        self.instant += 1;
         let breakaway = self.state.phase[joint] == Phase::Stuck;
         self.decide_at_rest(joint, breakaway)?;
         self.settle_phases()
@@ -78,9 +77,11 @@ impl Simulator {
     /// The joint whose margin crosses zero first in the solved sub-step, by
     /// linear interpolation of the margins at its ends.
     fn earliest_crossing(&self) -> Option<usize> {
+        let n = self.model.nq();
+        let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
         let mut best: Option<(usize, f64)> = None;
-        for i in 0..self.model.nq() {
-            let (g0, g1) = (self.start.margin[i], self.state.margin[i]);
+        for i in 0..n {
+            let (g0, g1) = (start[i], end[i]);
             if g0 >= 0.0 && g1 < 0.0 && g0.is_finite() {
                 let theta = g0 / (g0 - g1);
                 if best.is_none_or(|(_, b)| theta < b) {
@@ -96,31 +97,45 @@ impl Simulator {
     /// the form in which average-acceleration Newmark balances energy.
     fn accept(&mut self) -> Result<(), StepError> {
         let (s, st) = (&self.start, &mut self.state);
-        if st.q.iter().chain(&st.qd).chain(&st.qdd).any(|x| !x.is_finite()) {
+        let n = self.model.nq();
+        // Slices of length n let the compiler drop the per-index bounds checks.
+        let (q, qd, qdd, q_star) = (&st.q[..n], &st.qd[..n], &st.qdd[..n], &st.q_star[..n]);
+        let (drive, friction, damping) = (&st.drive_force[..n], &st.friction_force[..n], &st.damping_force[..n]);
+        let (s_q, s_q_star) = (&s.q[..n], &s.q_star[..n]);
+        let (s_drive, s_friction, s_damping) = (&s.drive_force[..n], &s.friction_force[..n], &s.damping_force[..n]);
+        let (phase, stuck_time) = (&st.phase[..n], &mut st.stuck_time[..n]);
+        // x − x is 0 for every finite x and NaN otherwise.
+        let mut finite = 0.0;
+        for i in 0..n {
+            finite += (q[i] - q[i]) + (qd[i] - qd[i]) + (qdd[i] - qdd[i]);
+        }
+        if finite != 0.0 {
             return Err(StepError::NonFiniteState { time: st.time });
         }
         // The end of this sub-step is the start of the next one.
-        self.qdd_history.rotate_right(1);
+        self.qdd_history.swap(1, 2);
+        self.qdd_history.swap(0, 1);
         self.qdd_history[0].copy_from_slice(&self.refined_qdd);
-        self.previous_h = [st.time - s.time, self.previous_h[0]];
+        let dt = st.time - s.time;
+        self.previous_h = [dt, self.previous_h[0]];
         self.predictor_depth = (self.predictor_depth + 1).min(2);
-        let e = &mut st.energy;
-        for (i, joint) in self.model.joints.iter().enumerate() {
-            if st.phase[i] == Phase::Stuck {
-                st.stuck_time[i] += st.time - s.time;
+        // The drive moves its end q* (for a rigid drive q* = q): it works
+        // through Δq*, its damper dissipates over Δq* − Δq (zero when rigid).
+        let (mut drive_work, mut friction_heat, mut damping_heat) = (0.0, 0.0, 0.0);
+        for i in 0..n {
+            if phase[i] == Phase::Stuck {
+                stuck_time[i] += dt;
             }
-            let dq = st.q[i] - s.q[i];
-            let drive = 0.5 * (s.drive_force[i] + st.drive_force[i]);
-            e.friction_heat += 0.5 * (s.friction_force[i] + st.friction_force[i]) * dq;
-            match joint.drive {
-                Drive::Rigid => e.drive_work += drive * dq,
-                Drive::Flexible { .. } => {
-                    let dq_star = st.q_star[i] - s.q_star[i];
-                    e.drive_work += drive * dq_star;
-                    e.damping_heat += 0.5 * (s.damping_force[i] + st.damping_force[i]) * (dq_star - dq);
-                }
-            }
+            let dq = q[i] - s_q[i];
+            let dq_star = q_star[i] - s_q_star[i];
+            drive_work += (s_drive[i] + drive[i]) * dq_star;
+            friction_heat += (s_friction[i] + friction[i]) * dq;
+            damping_heat += (s_damping[i] + damping[i]) * (dq_star - dq);
         }
+        let e = &mut st.energy;
+        e.drive_work += 0.5 * drive_work;
+        e.friction_heat += 0.5 * friction_heat;
+        e.damping_heat += 0.5 * damping_heat;
         Ok(())
     }
 
@@ -133,7 +148,7 @@ impl Simulator {
     /// the joint slips without that check.
     fn decide_at_rest(&mut self, i: usize, breakaway: bool) -> Result<(), StepError> {
         let before = self.state.phase[i];
-        self.decided[i] = true;
+        self.decided[i] = self.instant;
         self.state.qd[i] = 0.0;
         self.state.phase[i] = Phase::Stuck;
         self.evaluate()?;
@@ -160,7 +175,7 @@ impl Simulator {
     /// Makes every joint's phase consistent with the current state: a stuck
     /// joint whose static friction is exceeded breaks away, a slipping joint
     /// at rest that accelerates against its direction is decided anew. Each
-    /// joint is decided at most once per instant (`self.decided` is cleared
+    /// joint is decided at most once per instant (`self.instant` moves on
     /// when time moves on).
     pub(crate) fn settle_phases(&mut self) -> Result<(), StepError> {
         while let Some(i) = self.pending_phase_change() {
@@ -175,7 +190,7 @@ impl Simulator {
     fn pending_phase_change(&self) -> Option<usize> {
         let st = &self.state;
         (0..self.model.nq()).find(|&i| {
-            !self.decided[i]
+            self.decided[i] != self.instant
                 && match st.phase[i] {
                     Phase::Stuck => st.margin[i] < 0.0,
                     Phase::Slipping(d) => {
