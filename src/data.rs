@@ -1,6 +1,7 @@
 //! The workspace of the algorithms: everything that is computed, sized once
 //! from the model so that nothing allocates on the hot path.
 
+use crate::algorithms::kinematics::DhRotation;
 use crate::math::{Mat3, Mat6, MatN, Vec3};
 use crate::model::Model;
 
@@ -11,7 +12,7 @@ use crate::model::Model;
 /// i−1 for joint i. The frame-0 kinematics (`rotation` … `inertia`) come from
 /// [`forward_kinematics`](crate::algorithms::kinematics::forward_kinematics);
 /// the inverse dynamics works in the link frames from the DH transforms
-/// alone (`theta_sin_cos` … `link_offset`) and resolves every quantity of
+/// alone (`dh_rotation` … `link_offset`) and resolves every quantity of
 /// link i in frame i.
 #[derive(Debug, Clone)]
 pub struct Data {
@@ -28,11 +29,9 @@ pub struct Data {
     pub com: Vec<Vec3>,
     /// Inertia tensor of link i about its centre of mass, frame 0 axes (joint array).
     pub inertia: Vec<Mat3>,
-    /// (sin α_i, cos α_i) of the constant twists.
-    pub alpha_sin_cos: Vec<(f64, f64)>,
-    /// (sin θ_i, cos θ_i) at the last joint coordinates (constant for
-    /// prismatic joints).
-    pub theta_sin_cos: Vec<(f64, f64)>,
+    /// Rotation R_i of A_i at the last joint coordinates (its θ_i is
+    /// constant for prismatic joints, its α_i always).
+    pub dh_rotation: Vec<DhRotation>,
     /// d_i at the last joint coordinates, m.
     pub dh_d: Vec<f64>,
     /// O_i − O_{i−1} resolved in frame i: (a_i, d_i·sin α_i, d_i·cos α_i), m.
@@ -71,8 +70,7 @@ impl Data {
             joint_origin: vec![Vec3::zeros(); n],
             com: vec![Vec3::zeros(); n],
             inertia: vec![Mat3::zeros(); n],
-            alpha_sin_cos: model.joints.iter().map(|j| j.dh.alpha.sin_cos()).collect(),
-            theta_sin_cos: model.joints.iter().map(|j| j.dh.theta.sin_cos()).collect(),
+            dh_rotation: model.joints.iter().map(|j| DhRotation::new(j.dh.theta, j.dh.alpha)).collect(),
             dh_d: vec![0.0; n],
             link_offset: vec![Vec3::zeros(); n],
             omega: vec![Vec3::zeros(); n + 1],

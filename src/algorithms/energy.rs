@@ -1,6 +1,5 @@
 //! Kinetic and potential energy of the links.
 
-use super::kinematics::{joint_axis_in_child, to_child};
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
@@ -13,15 +12,15 @@ pub fn kinetic_energy(model: &Model, data: &Data, qd: &[f64]) -> f64 {
     let (mut w, mut v) = (Vec3::zeros(), Vec3::zeros());
     let mut t = 0.0;
     for (i, (joint, link)) in model.joints.iter().zip(&model.links).enumerate() {
-        let p = data.link_offset[i];
+        let (p, r) = (data.link_offset[i], data.dh_rotation[i]);
         match joint.kind {
             JointKind::Revolute => {
-                w = to_child(data, i, &(w + Vec3::z() * qd[i]));
-                v = to_child(data, i, &v) + w.cross(&p);
+                w = r.to_child(&(w + Vec3::z() * qd[i]));
+                v = r.to_child(&v) + w.cross(&p);
             }
             JointKind::Prismatic => {
-                w = to_child(data, i, &w);
-                v = to_child(data, i, &v) + w.cross(&p) + joint_axis_in_child(data, i) * qd[i];
+                w = r.to_child(&w);
+                v = r.to_child(&v) + w.cross(&p) + r.axis_in_child() * qd[i];
             }
         }
         let v_c = v + w.cross(&link.com);

@@ -29,66 +29,85 @@ pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
     )
 }
 
+/// The rotation of a DH transform A_i (eq. 3.1), R_i = Rot_z(θ_i)·Rot_x(α_i),
+/// by the sines and cosines of its two angles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DhRotation {
+    /// sin θ_i.
+    pub sin_theta: f64,
+    /// cos θ_i.
+    pub cos_theta: f64,
+    /// sin α_i.
+    pub sin_alpha: f64,
+    /// cos α_i.
+    pub cos_alpha: f64,
+}
+
+impl DhRotation {
+    /// R_i for the angles θ, α.
+    pub fn new(theta: f64, alpha: f64) -> DhRotation {
+        let ((sin_theta, cos_theta), (sin_alpha, cos_alpha)) = (theta.sin_cos(), alpha.sin_cos());
+        DhRotation { sin_theta, cos_theta, sin_alpha, cos_alpha }
+    }
+
+    /// R_iᵀ·v: a vector resolved in frame i−1 resolved in frame i.
+    #[inline]
+    pub fn to_child(&self, v: &Vec3) -> Vec3 {
+        let (st, ct, sa, ca) = (self.sin_theta, self.cos_theta, self.sin_alpha, self.cos_alpha);
+        let (x, y) = (ct * v.x + st * v.y, ct * v.y - st * v.x);
+        Vec3::new(x, ca * y + sa * v.z, ca * v.z - sa * y)
+    }
+
+    /// R_i·v: a vector resolved in frame i resolved in frame i−1.
+    #[inline]
+    pub fn to_parent(&self, v: &Vec3) -> Vec3 {
+        let (st, ct) = (self.sin_theta, self.cos_theta);
+        let u = self.to_joint_frame(v);
+        Vec3::new(ct * u.x - st * u.y, st * u.x + ct * u.y, u.z)
+    }
+
+    /// Rot_x(α_i)·v: a vector resolved in frame i resolved in the joint frame
+    /// of joint i (frame i−1 turned by θ_i; z the joint axis).
+    #[inline]
+    pub fn to_joint_frame(&self, v: &Vec3) -> Vec3 {
+        let (sa, ca) = (self.sin_alpha, self.cos_alpha);
+        Vec3::new(v.x, ca * v.y - sa * v.z, sa * v.y + ca * v.z)
+    }
+
+    /// Rot_z(θ_i)ᵀ·v: a vector resolved in frame i−1 resolved in the joint frame.
+    #[inline]
+    pub fn parent_to_joint_frame(&self, v: &Vec3) -> Vec3 {
+        let (st, ct) = (self.sin_theta, self.cos_theta);
+        Vec3::new(ct * v.x + st * v.y, ct * v.y - st * v.x, v.z)
+    }
+
+    /// The joint axis z_{i−1} resolved in frame i: R_iᵀ·e_z = (0, sin α_i, cos α_i).
+    #[inline]
+    pub fn axis_in_child(&self) -> Vec3 {
+        Vec3::new(0.0, self.sin_alpha, self.cos_alpha)
+    }
+}
+
 /// The joint-dependent parts of the DH transforms A_i (eq. 3.1) at joint
-/// coordinates `q`: (sin θ_i, cos θ_i) in `data.theta_sin_cos`, d_i in
-/// `data.dh_d` and the link offset p_i = O_i − O_{i−1} resolved in frame i,
+/// coordinates `q`: the rotations in `data.dh_rotation`, d_i in `data.dh_d`
+/// and the link offset p_i = O_i − O_{i−1} resolved in frame i,
 /// (a_i, d_i·sin α_i, d_i·cos α_i), in `data.link_offset`. This is all the
 /// recursive inverse dynamics needs: it works in the link frames.
 pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
     let n = model.nq();
-    assert!(
-        q.len() == n
-            && data.theta_sin_cos.len() == n
-            && data.alpha_sin_cos.len() == n
-            && data.dh_d.len() == n
-            && data.link_offset.len() == n,
-        "joint_transforms: data and q must be sized for the model"
-    );
-    for (i, joint) in model.joints.iter().enumerate() {
-        // The constant θ of a prismatic joint keeps the sines cached by `Data::new`.
+    let (rotation, dh_d, link_offset) = (&mut data.dh_rotation[..n], &mut data.dh_d[..n], &mut data.link_offset[..n]);
+    let q = &q[..n];
+    for (i, joint) in model.joints.iter().enumerate().take(n) {
+        // The constant θ of a prismatic joint keeps the sines set by `Data::new`.
         if joint.kind == JointKind::Revolute {
-            data.theta_sin_cos[i] = (joint.dh.theta + q[i]).sin_cos();
+            let (st, ct) = (joint.dh.theta + q[i]).sin_cos();
+            rotation[i].sin_theta = st;
+            rotation[i].cos_theta = ct;
         }
         let d = dh_variables(joint, q[i]).1;
-        let (sa, ca) = data.alpha_sin_cos[i];
-        data.dh_d[i] = d;
-        data.link_offset[i] = Vec3::new(joint.dh.a, d * sa, d * ca);
+        dh_d[i] = d;
+        link_offset[i] = Vec3::new(joint.dh.a, d * rotation[i].sin_alpha, d * rotation[i].cos_alpha);
     }
-}
-
-/// R_iᵀ·v: a vector resolved in frame i−1 resolved in frame i, where
-/// R_i = Rot_z(θ_i)·Rot_x(α_i) is the rotation of A_i (joint `i` 0-based;
-/// from the last [`joint_transforms`]).
-#[inline]
-pub fn to_child(data: &Data, i: usize, v: &Vec3) -> Vec3 {
-    let (st, ct) = data.theta_sin_cos[i];
-    let (sa, ca) = data.alpha_sin_cos[i];
-    let (x, y) = (ct * v.x + st * v.y, ct * v.y - st * v.x);
-    Vec3::new(x, ca * y + sa * v.z, ca * v.z - sa * y)
-}
-
-/// R_i·v: a vector resolved in frame i resolved in frame i−1 (the inverse
-/// of [`to_child`]).
-#[inline]
-pub fn to_parent(data: &Data, i: usize, v: &Vec3) -> Vec3 {
-    let (st, ct) = data.theta_sin_cos[i];
-    let u = to_joint_frame(data, i, v);
-    Vec3::new(ct * u.x - st * u.y, st * u.x + ct * u.y, u.z)
-}
-
-/// Rot_x(α_i)·v: a vector resolved in frame i resolved in the joint frame of
-/// joint `i` (frame i−1 turned by θ_i; z the joint axis).
-#[inline]
-pub fn to_joint_frame(data: &Data, i: usize, v: &Vec3) -> Vec3 {
-    let (sa, ca) = data.alpha_sin_cos[i];
-    Vec3::new(v.x, ca * v.y - sa * v.z, sa * v.y + ca * v.z)
-}
-
-/// The axis z_{i−1} of joint `i` resolved in frame i: R_iᵀ·e_z = (0, sin α_i, cos α_i).
-#[inline]
-pub fn joint_axis_in_child(data: &Data, i: usize) -> Vec3 {
-    let (sa, ca) = data.alpha_sin_cos[i];
-    Vec3::new(0.0, sa, ca)
 }
 
 /// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
@@ -113,9 +132,8 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     data.rotation[0] = Mat3::identity();
     data.origin[0] = Vec3::zeros();
     for (i, joint) in model.joints.iter().enumerate() {
-        let (st, ct) = data.theta_sin_cos[i];
+        let DhRotation { sin_theta: st, cos_theta: ct, sin_alpha: sa, cos_alpha: ca } = data.dh_rotation[i];
         let d = data.dh_d[i];
-        let (sa, ca) = data.alpha_sin_cos[i];
         let parent_r = data.rotation[i];
         let (x, y, z) = (parent_r.column(0), parent_r.column(1), parent_r.column(2));
         // Joint frame: Rot_z(θ)·Trans_z(d) applied to frame i−1; z stays the joint axis.
@@ -171,12 +189,9 @@ pub fn reaction_offset(model: &Model, data: &Data, i: usize) -> Vec3 {
     let d = data.dh_d[i];
     match model.joints[i].friction.map(|f| f.geometry) {
         // P given in frame i−1: turn it by −θ_i about z.
-        Some(ContactGeometry::Bearings { reaction_point: r, .. }) => {
-            let (st, ct) = data.theta_sin_cos[i];
-            -Vec3::new(ct * r.x + st * r.y, ct * r.y - st * r.x, r.z)
-        }
+        Some(ContactGeometry::Bearings { reaction_point, .. }) => -data.dh_rotation[i].parent_to_joint_frame(&reaction_point),
         Some(ContactGeometry::Slider { centre, .. }) => {
-            Vec3::new(-model.joints[i].dh.a, 0.0, -d) - to_joint_frame(data, i, &centre)
+            Vec3::new(-model.joints[i].dh.a, 0.0, -d) - data.dh_rotation[i].to_joint_frame(&centre)
         }
         None => Vec3::new(0.0, 0.0, -d),
     }

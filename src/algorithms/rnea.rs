@@ -4,7 +4,7 @@
 //! only the DH transforms A_i of [`joint_transforms`](super::kinematics::joint_transforms)
 //! (a rotation by θ_i about z and one by α_i about x) and no frame-0 kinematics.
 
-use super::kinematics::{joint_axis_in_child, reaction_offset, to_child, to_joint_frame, to_parent};
+use super::kinematics::reaction_offset;
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
@@ -29,8 +29,7 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
         qd.len() == n
             && qdd.len() == n
             && model.links.len() == n
-            && data.theta_sin_cos.len() == n
-            && data.alpha_sin_cos.len() == n
+            && data.dh_rotation.len() == n
             && data.link_offset.len() == n
             && data.omega.len() == n + 1
             && data.omega_dot.len() == n + 1
@@ -45,21 +44,21 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     // Gravity enters as an upward acceleration of the base.
     data.acceleration[0] = -model.gravity;
     for i in 0..n {
-        let p = data.link_offset[i];
+        let (p, r) = (data.link_offset[i], data.dh_rotation[i]);
         let (w_prev, wd_prev) = (data.omega[i], data.omega_dot[i]);
-        let a_prev = to_child(data, i, &data.acceleration[i]);
+        let a_prev = r.to_child(&data.acceleration[i]);
         let (w, wd, a) = match model.joints[i].kind {
             JointKind::Revolute => {
                 // In frame i−1: ω + z·q̇, ω̇ + z·q̈ + ω × z·q̇ with ω × z = (ω_y, −ω_x, 0).
                 let w_p = Vec3::new(w_prev.x, w_prev.y, w_prev.z + qd[i]);
                 let wd_p = Vec3::new(wd_prev.x + w_prev.y * qd[i], wd_prev.y - w_prev.x * qd[i], wd_prev.z + qdd[i]);
-                let (w, wd) = (to_child(data, i, &w_p), to_child(data, i, &wd_p));
+                let (w, wd) = (r.to_child(&w_p), r.to_child(&wd_p));
                 (w, wd, a_prev + wd.cross(&p) + w.cross(&w.cross(&p)))
             }
             JointKind::Prismatic => {
                 // p = O_i − O_{i−1} turns with link i−1 and grows along the axis.
-                let (w, wd) = (to_child(data, i, &w_prev), to_child(data, i, &wd_prev));
-                let axis = joint_axis_in_child(data, i);
+                let (w, wd) = (r.to_child(&w_prev), r.to_child(&wd_prev));
+                let axis = r.axis_in_child();
                 let a = a_prev + axis * qdd[i] + wd.cross(&p) + w.cross(&(w.cross(&p) + axis * (2.0 * qd[i])));
                 (w, wd, a)
             }
@@ -78,12 +77,14 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
         let f_inertial = a_c * link.mass;
         let n_inertial = link.inertia * wd + w.cross(&(link.inertia * w));
         // The child's force, and its moment about O_i, resolved in frame i.
-        let (f_child, n_child) =
-            if i + 1 < n { (to_parent(data, i + 1, &f_next), to_parent(data, i + 1, &n_next)) } else { (f_next, n_next) };
+        let (f_child, n_child) = match data.dh_rotation.get(i + 1) {
+            Some(r) => (r.to_parent(&f_next), r.to_parent(&n_next)),
+            None => (f_next, n_next),
+        };
         let p = data.link_offset[i];
         let f = f_inertial + f_child;
         let m = n_inertial + (p + c).cross(&f_inertial) + n_child + p.cross(&f_child);
-        let axis = joint_axis_in_child(data, i);
+        let axis = data.dh_rotation[i].axis_in_child();
         data.tau[i] = match model.joints[i].kind {
             JointKind::Revolute => axis.dot(&m),
             JointKind::Prismatic => axis.dot(&f),
@@ -108,8 +109,8 @@ pub fn joint_reactions(model: &Model, data: &mut Data) {
 /// The reaction of joint `i` (0-based) only, as in [`joint_reactions`].
 #[inline]
 pub fn joint_reaction(model: &Model, data: &mut Data, i: usize) {
-    let f = to_joint_frame(data, i, &data.force[i]);
-    let m = to_joint_frame(data, i, &data.moment[i]);
+    let r = data.dh_rotation[i];
+    let (f, m) = (r.to_joint_frame(&data.force[i]), r.to_joint_frame(&data.moment[i]));
     // Moment about the reaction point P from the moment about O_{i−1}.
     data.reaction_force[i] = f;
     data.reaction_moment[i] = m + reaction_offset(model, data, i).cross(&f);
