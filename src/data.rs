@@ -1,7 +1,7 @@
 //! The workspace of the algorithms: everything that is computed, sized once
 //! from the model so that nothing allocates on the hot path.
 
-use crate::algorithms::kinematics::DhRotation;
+use crate::algorithms::kinematics::{DhRotation, ThetaAnchor};
 use crate::math::{Mat3, Mat6, MatN, Vec3};
 use crate::model::Model;
 
@@ -32,6 +32,10 @@ pub struct Data {
     /// Rotation R_i of A_i at the last joint coordinates (its θ_i is
     /// constant for prismatic joints, its α_i always).
     pub dh_rotation: Vec<DhRotation>,
+    /// Coordinates and exact sines of θ_i at which the revolute joints'
+    /// rotations were last computed by the library (see
+    /// [`joint_transforms_near_anchors`](crate::algorithms::kinematics::joint_transforms_near_anchors)).
+    pub theta_anchor: Vec<ThetaAnchor>,
     /// d_i at the last joint coordinates, m.
     pub dh_d: Vec<f64>,
     /// O_i − O_{i−1} resolved in frame i: (a_i, d_i·sin α_i, d_i·cos α_i), m.
@@ -71,6 +75,14 @@ impl Data {
             com: vec![Vec3::zeros(); n],
             inertia: vec![Mat3::zeros(); n],
             dh_rotation: model.joints.iter().map(|j| DhRotation::new(j.dh.theta, j.dh.alpha)).collect(),
+            theta_anchor: model
+                .joints
+                .iter()
+                .map(|j| {
+                    let (sin_theta, cos_theta) = j.dh.theta.sin_cos();
+                    ThetaAnchor { q: 0.0, sin_theta, cos_theta }
+                })
+                .collect(),
             dh_d: vec![0.0; n],
             link_offset: vec![Vec3::zeros(); n],
             omega: vec![Vec3::zeros(); n + 1],

@@ -4,7 +4,7 @@
 use super::simulator::Simulator;
 use super::state::Phase;
 use crate::algorithms::crba::{crba, motion_subspace};
-use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, reaction_point};
+use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, joint_transforms_near_anchors, reaction_point};
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::error::StepError;
@@ -198,11 +198,19 @@ impl Simulator {
 
     /// The DH transforms of the current coordinates, skipped when they
     /// differ from the last ones by rounding only (a Newton correction moves
-    /// q by βh²·Δq̈, often below 1e-15).
+    /// q by βh²·Δq̈, often below 1e-15). The first ones of an interval are
+    /// computed by the library's sin_cos, the others expanded about them:
+    /// either way a function of the interval's start and inputs only.
     fn update_kinematics(&mut self) {
-        let moved = self.state.q.iter().zip(&self.kinematics_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
-        if moved || !self.kinematics_current {
+        if !self.kinematics_current {
             joint_transforms(&self.model, &mut self.data, &self.state.q);
+            self.kinematics_q.copy_from_slice(&self.state.q);
+            self.kinematics_current = true;
+            return;
+        }
+        let moved = self.state.q.iter().zip(&self.kinematics_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
+        if moved {
+            joint_transforms_near_anchors(&self.model, &mut self.data, &self.state.q);
             self.kinematics_q.copy_from_slice(&self.state.q);
             self.kinematics_current = true;
         }

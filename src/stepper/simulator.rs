@@ -172,6 +172,7 @@ impl Simulator {
             return Err(ModelError::Invalid { field: "state".into(), reason: "does not fit this model".into() });
         }
         self.state.copy_from(state);
+        self.kinematics_current = false;
         self.initialized = true;
         Ok(())
     }
