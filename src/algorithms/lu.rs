@@ -32,6 +32,11 @@ pub fn factor(a: &mut [f64], n: usize, pivots: &mut [usize]) -> bool {
 pub fn solve(lu: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
     // Slices of the used sizes let the compiler drop the per-index bounds checks.
     let (lu, b) = (&lu[..n * n], &mut b[..n]);
+    if n == 1 {
+        // The common case of one slipping joint.
+        b[0] /= lu[0];
+        return;
+    }
     for (k, &p) in pivots[..n].iter().enumerate() {
         b.swap(k, p);
     }

@@ -83,7 +83,8 @@ pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
         };
         let p = data.link_offset[i];
         let f = f_inertial + f_child;
-        let m = n_inertial + (p + c).cross(&f_inertial) + n_child + p.cross(&f_child);
+        // About O_{i−1}: (p + c) × F + p × f_child = c × F + p × f.
+        let m = n_inertial + c.cross(&f_inertial) + p.cross(&f) + n_child;
         let axis = data.dh_rotation[i].axis_in_child();
         data.tau[i] = match model.joints[i].kind {
             JointKind::Revolute => axis.dot(&m),
