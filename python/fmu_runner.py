@@ -91,14 +91,13 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
     unzipdir = extract(fmu, tempfile.mkdtemp(prefix="stickslip_"))
     slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
                       instanceName="run")
-    result = {"time": []} | {v.name: [] for v in real_out + bool_out}
+    real_vrs = [v.valueReference for v in real_out]
+    bool_vrs = [v.valueReference for v in bool_out]
+    rows = []
 
     def record(t):
-        result["time"].append(t)
-        for v, x in zip(real_out, slave.getReal([v.valueReference for v in real_out])):
-            result[v.name].append(x)
-        for v, x in zip(bool_out, slave.getBoolean([v.valueReference for v in bool_out])):
-            result[v.name].append(1 if x else 0)
+        # One tuple per communication point; split into columns at the end.
+        rows.append((t, *slave.getReal(real_vrs), *(1 if x else 0 for x in slave.getBoolean(bool_vrs))))
 
     def set_inputs(t):
         q, qd, qdd = inputs(t)
@@ -133,7 +132,8 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
     finally:
         slave.freeInstance()
         shutil.rmtree(unzipdir, ignore_errors=True)
-    return result
+    names = ["time"] + [v.name for v in real_out + bool_out]
+    return {name: list(column) for name, column in zip(names, zip(*rows))} if rows else {name: [] for name in names}
 
 
 def write_csv(result: dict, path) -> None:
@@ -162,8 +162,10 @@ def main(argv=None) -> int:
         parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
     wall = time.perf_counter()
     result = run(a.fmu, a.end, a.interval, parameters, progress="reference motion")
+    simulated = time.perf_counter()
     write_csv(result, a.out)
-    print(f"simulated {a.end} s through {a.fmu} in {time.perf_counter() - wall:.2f} s wall; wrote {a.out}")
+    print(f"simulated {a.end} s through {a.fmu} in {simulated - wall:.2f} s wall "
+          f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s")
     return 0
 
 
