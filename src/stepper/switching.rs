@@ -79,17 +79,17 @@ impl Simulator {
     fn earliest_crossing(&self) -> Option<usize> {
         let n = self.model.nq();
         let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
-        let mut best: Option<(usize, f64)> = None;
+        let (mut best, mut best_theta) = (None, f64::INFINITY);
         for i in 0..n {
             let (g0, g1) = (start[i], end[i]);
-            if g0 >= 0.0 && g1 < 0.0 && g0.is_finite() {
+            if g1 < 0.0 && g0 >= 0.0 && g0 < f64::INFINITY {
                 let theta = g0 / (g0 - g1);
-                if best.is_none_or(|(_, b)| theta < b) {
-                    best = Some((i, theta));
+                if theta < best_theta {
+                    (best, best_theta) = (Some(i), theta);
                 }
             }
         }
-        best.map(|(i, _)| i)
+        best
     }
 
     /// Accepts the solved sub-step: checks it is finite and books the works.
@@ -123,7 +123,7 @@ impl Simulator {
         // through Δq*, its damper dissipates over Δq* − Δq (zero when rigid).
         let (mut drive_work, mut friction_heat, mut damping_heat) = (0.0, 0.0, 0.0);
         for i in 0..n {
-            if phase[i] == Phase::Stuck {
+            if matches!(phase[i], Phase::Stuck) {
                 stuck_time[i] += dt;
             }
             let dq = q[i] - s_q[i];
