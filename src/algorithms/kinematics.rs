@@ -163,9 +163,9 @@ pub struct ThetaAnchor {
 
 /// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
 /// the joint frames, and every link's centre of mass and inertia in frame 0,
-/// for joint coordinates `q` (length n), after [`joint_transforms`] of the
-/// same `q`, which it calls. `data` must have been built for `model` (it
-/// holds the sines and cosines of the constant DH angles).
+/// for joint coordinates `q` (length n); it first calls [`joint_transforms`]
+/// for `q`. `data` must have been built for `model` (it holds the sines and
+/// cosines of the constant DH angles).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     joint_transforms(model, data, q);
     let n = model.nq();
