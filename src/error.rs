@@ -100,4 +100,10 @@ pub enum StepError {
         /// What is wrong, naming the parameter.
         reason: String,
     },
+    /// An instruction set was requested that this processor lacks.
+    #[error("this processor does not support the {name} instruction set")]
+    UnsupportedInstructionSet {
+        /// Name of the instruction set.
+        name: &'static str,
+    },
 }

@@ -95,6 +95,7 @@ impl DhRotation {
 /// recursive inverse dynamics needs: it works in the link frames. The sines
 /// and cosines of θ_i come from the library and become the anchors of
 /// [`joint_transforms_near_anchors`].
+#[inline(always)]
 pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
     dh_joint_parts(model, data, q, false);
 }
@@ -105,6 +106,7 @@ pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
 /// stepper moves q by micro-radians per sub-step, and this is a quarter of
 /// the cost of the library's sin_cos, as accurate, and still a function of
 /// the anchor and q only.
+#[inline(always)]
 pub fn joint_transforms_near_anchors(model: &Model, data: &mut Data, q: &[f64]) {
     dh_joint_parts(model, data, q, true);
 }
@@ -117,7 +119,7 @@ pub const ANCHOR_REACH: f64 = 1e-2;
 /// δ⁶ (the first omitted terms are below 2e-18), added to s₀, c₀ as small
 /// corrections so that the result is within about one rounding of the exact
 /// value.
-#[inline]
+#[inline(always)]
 pub fn sin_cos_near(s0: f64, c0: f64, delta: f64) -> (f64, f64) {
     let d2 = delta * delta;
     let cos_m1 = d2 * (-0.5 + d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)));
@@ -125,6 +127,7 @@ pub fn sin_cos_near(s0: f64, c0: f64, delta: f64) -> (f64, f64) {
     (s0 + (s0 * cos_m1 + c0 * sin_d), c0 + (c0 * cos_m1 - s0 * sin_d))
 }
 
+#[inline(always)]
 fn dh_joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool) {
     let n = model.nq();
     let (rotation, dh_d, link_offset) = (&mut data.dh_rotation[..n], &mut data.dh_d[..n], &mut data.link_offset[..n]);
@@ -235,6 +238,7 @@ pub fn reaction_point(model: &Model, data: &Data, i: usize) -> Vec3 {
 /// (see [`reaction_point`]) to the origin of frame i−1, resolved in the joint
 /// frame, from the last [`joint_transforms`]. The joint frame's origin is
 /// O_{i−1} + d_i·z_{i−1}; frame i's is that plus a_i along the joint frame's x.
+#[inline(always)]
 pub fn reaction_offset(model: &Model, data: &Data, i: usize) -> Vec3 {
     use crate::model::ContactGeometry;
     let d = data.dh_d[i];

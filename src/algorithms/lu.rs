@@ -29,6 +29,7 @@ pub fn factor(a: &mut [f64], n: usize, pivots: &mut [usize]) -> bool {
 }
 
 /// Solves A·x = b in place (`b` becomes x) with the factors from [`factor`].
+#[inline(always)]
 pub fn solve(lu: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
     // Slices of the used sizes let the compiler drop the per-index bounds checks.
     let (lu, b) = (&lu[..n * n], &mut b[..n]);

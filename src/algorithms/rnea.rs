@@ -22,6 +22,7 @@ use crate::model::{JointKind, Model};
 ///
 /// The forward loop carries velocities and accelerations from link 1 to n,
 /// the backward loop the joint forces from joint n to 1.
+#[inline(always)]
 pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
     let n = model.nq();
     // One check up front lets the compiler drop the per-index bounds checks.
@@ -108,7 +109,7 @@ pub fn joint_reactions(model: &Model, data: &mut Data) {
 }
 
 /// The reaction of joint `i` (0-based) only, as in [`joint_reactions`].
-#[inline]
+#[inline(always)]
 pub fn joint_reaction(model: &Model, data: &mut Data, i: usize) {
     let r = data.dh_rotation[i];
     let (f, m) = (r.to_joint_frame(&data.force[i]), r.to_joint_frame(&data.moment[i]));

@@ -3,7 +3,7 @@
 /// Driving force or moment F^d_i of eq. (2.1):
 /// F^d = k·δ·(q* − q − σΔ) + h·δ·(q̇* − q̇), with δ = 1 when |q* − q| ≥ Δ
 /// (the clearance is taken up) and 0 inside it, and σ = sgn(q* − q).
-#[inline]
+#[inline(always)]
 pub fn drive_force(stiffness: f64, damping: f64, clearance: f64, q_star: f64, qd_star: f64, q: f64, qd: f64) -> f64 {
     let e = q_star - q;
     if e.abs() < clearance {

@@ -18,6 +18,7 @@ pub struct ContactLoad {
 
 /// Normal loads of the contact `geometry` under the joint force `f` and
 /// moment `n` (reaction reference point, joint frame: z along the axis).
+#[inline(always)]
 pub fn contact_load(geometry: &ContactGeometry, f: &Vec3, n: &Vec3) -> ContactLoad {
     match *geometry {
         ContactGeometry::Bearings { l_a, l_b, d_a, d_b, d_c, .. } => {
@@ -37,7 +38,7 @@ pub fn contact_load(geometry: &ContactGeometry, f: &Vec3, n: &Vec3) -> ContactLo
 
 /// Radial loads R_A (bearing A, l_A below the reference point) and R_B
 /// (bearing B, l_B above it) of eq. (3.15).
-#[inline]
+#[inline(always)]
 pub fn bearing_loads(l_a: f64, l_b: f64, f: &Vec3, n: &Vec3) -> (f64, f64) {
     let l = l_a + l_b;
     // Loads are far from overflow: a plain root is exact enough and cheaper than hypot.
@@ -50,7 +51,7 @@ pub fn bearing_loads(l_a: f64, l_b: f64, f: &Vec3, n: &Vec3) -> (f64, f64) {
 /// Total normal load N_s on a slider of length `a` and cross-section
 /// `b` × `c` touching its slideway at the eight corner points, eq. (3.11),
 /// from the force f' and moment n' at the slider centre.
-#[inline]
+#[inline(always)]
 pub fn slider_normal_load(a: f64, b: f64, c: f64, f: &Vec3, n: &Vec3) -> f64 {
     let n_fx = 0.25 * f.x;
     let n_fy = 0.25 * f.y;

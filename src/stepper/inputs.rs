@@ -43,7 +43,7 @@ impl InputPolynomial {
     }
 
     /// (q*, q̇*, q̈*) of joint `i` at time `t`.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, i: usize, t: f64) -> (f64, f64, f64) {
         let tau = t - self.t0;
         let a = self.qdd[i];

@@ -1,11 +1,13 @@
 //! The iterative Newmark stepper with stick–slip switching.
 
 mod inputs;
+mod isa;
 mod newmark;
 mod simulator;
 mod state;
 mod switching;
 
 pub use inputs::{DriveInputs, InputPolynomial};
+pub use isa::InstructionSet;
 pub use simulator::{InitialState, Simulator, Transition, TRANSITION_LOG_CAPACITY};
 pub use state::{Energy, Phase, State};

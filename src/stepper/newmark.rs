@@ -29,7 +29,7 @@ impl Simulator {
         self.newton_valid = false;
         self.predictor_depth = 0;
         self.qdd_history[0].copy_from_slice(&self.start.qdd);
-        self.solve(self.start.time)?;
+        self.solve_out_of_line(self.start.time)?;
         self.qdd_history[0].copy_from_slice(&self.refined_qdd);
         Ok(())
     }
@@ -50,6 +50,7 @@ impl Simulator {
     /// the same slipping joints (it changes by O(h) per sub-step, which only
     /// slows convergence slightly) and rebuilt when an iteration needs more
     /// than two corrections.
+    #[inline(always)]
     pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
         let h = t - self.start.time;
         let settings = self.model.integrator;
@@ -127,10 +128,19 @@ impl Simulator {
         unreachable!("the loop returns on its last iteration")
     }
 
+    /// [`Simulator::solve`] as a call, for the solves outside the stepping
+    /// loop's common path (evaluations, locating a transition), which need
+    /// not be inlined into it.
+    #[inline(never)]
+    pub(crate) fn solve_out_of_line(&mut self, t: f64) -> Result<(), StepError> {
+        self.solve(t)
+    }
+
     /// Sets up the sub-step to time `t` (length `h`): the drive inputs at
     /// `t`, the prescribed motion of rigid joints, stuck joints held at their
     /// start, the list of free (slipping) joints and their predicted q̈:
     /// the Lagrange extrapolation of the last three refined accelerations.
+    #[inline(always)]
     fn predict(&mut self, t: f64, h: f64) {
         let n = self.model.nq();
         // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
@@ -184,6 +194,7 @@ impl Simulator {
     /// quadratic extrapolation multiplies such errors by up to 7: from raw
     /// values the prediction lands just above the tolerance in most
     /// sub-steps, from refined ones mostly below it.
+    #[inline(always)]
     fn refine_acceleration(&mut self) {
         self.refined_qdd.copy_from_slice(&self.state.qdd);
         let nf = self.free.len();
@@ -201,6 +212,7 @@ impl Simulator {
     /// q by βh²·Δq̈, often below 1e-15). The first ones of an interval are
     /// computed by the library's sin_cos, the others expanded about them:
     /// either way a function of the interval's start and inputs only.
+    #[inline(always)]
     fn update_kinematics(&mut self) {
         if !self.kinematics_current {
             joint_transforms(&self.model, &mut self.data, &self.state.q);
@@ -272,6 +284,7 @@ impl Simulator {
     /// fills the residuals of the free joints into `self.correction` and
     /// returns the largest one relative to its joint's force scale, and the
     /// sum of the squares of these relative residuals.
+    #[inline(always)]
     fn joint_forces(&mut self) -> (f64, f64) {
         let (model, data, st) = (&self.model, &self.data, &mut self.state);
         let n = model.nq();
@@ -343,6 +356,7 @@ impl Simulator {
 
 /// Size of the reaction a joint carries, as a floor for relative residuals:
 /// the force for a prismatic joint, the moment for a revolute one.
+#[inline(always)]
 fn joint_load_scale(data: &crate::data::Data, joint: &Joint, i: usize) -> f64 {
     match joint.kind {
         crate::model::JointKind::Prismatic => data.force[i].norm(),
@@ -350,7 +364,7 @@ fn joint_load_scale(data: &crate::data::Data, joint: &Joint, i: usize) -> f64 {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn sign(x: f64) -> f64 {
     if x > 0.0 {
         1.0

@@ -2,6 +2,7 @@
 //! communication intervals by the iterative Newmark stepper.
 
 use super::inputs::{DriveInputs, InputPolynomial};
+use super::isa::InstructionSet;
 use super::state::{Phase, State};
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use crate::algorithms::kinematics::{end_point, forward_kinematics};
@@ -103,6 +104,8 @@ pub struct Simulator {
     /// Newmark iterations of the last interval, for diagnostics.
     pub(crate) iterations: u64,
     pub(crate) initialized: bool,
+    /// The variant of the stepping loop that runs (see [`InstructionSet`]).
+    pub(crate) instruction_set: InstructionSet,
 }
 
 impl Simulator {
@@ -140,9 +143,27 @@ impl Simulator {
             transitions_dropped: 0,
             iterations: 0,
             initialized: false,
+            instruction_set: InstructionSet::best_available(),
             model_checked: true,
             model,
         })
+    }
+
+    /// The instruction set the stepping loop runs with: the best this
+    /// processor supports unless [`Simulator::set_instruction_set`] chose
+    /// another. Results do not depend on it, only speed.
+    pub fn instruction_set(&self) -> InstructionSet {
+        self.instruction_set
+    }
+
+    /// Runs the stepping loop with `set` from now on; an error if this
+    /// processor lacks it.
+    pub fn set_instruction_set(&mut self, set: InstructionSet) -> Result<(), StepError> {
+        if !set.is_available() {
+            return Err(StepError::UnsupportedInstructionSet { name: set.name() });
+        }
+        self.instruction_set = set;
+        Ok(())
     }
 
     /// The model.
@@ -322,6 +343,40 @@ impl Simulator {
         self.settle_phases()?;
         self.update_energies();
         self.state.energy.drive_work += self.state.energy.total() - before;
+        match self.instruction_set {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `instruction_set` is Avx2 only if the processor has AVX2
+            // (`best_available`, `set_instruction_set`).
+            InstructionSet::Avx2 => unsafe { self.step_interval_avx2(t0, interval) }?,
+            _ => self.step_interval_baseline(t0, interval)?,
+        }
+        self.update_reported();
+        Ok(())
+    }
+
+    /// [`Simulator::step_interval`] compiled for the baseline instruction set.
+    #[inline(never)]
+    fn step_interval_baseline(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+        self.step_interval(t0, interval)
+    }
+
+    /// [`Simulator::step_interval`] compiled with AVX2.
+    ///
+    /// # Safety
+    /// The processor must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    unsafe fn step_interval_avx2(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+        self.step_interval(t0, interval)
+    }
+
+    /// The sub-steps of the interval from `t0` of length `interval`: it is
+    /// covered by ceil(interval / h_max) equal sub-steps, each shortened
+    /// where a joint sticks or slips. Inlined into its two instruction-set
+    /// variants, as is everything it calls per sub-step.
+    #[inline(always)]
+    fn step_interval(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
         let h_max = self.model.integrator.h_max;
         let steps = (interval / h_max).ceil().max(1.0);
         let h = interval / steps;
@@ -335,7 +390,6 @@ impl Simulator {
             }
             self.state.time = t_grid;
         }
-        self.update_reported();
         Ok(())
     }
 

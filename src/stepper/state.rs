@@ -181,6 +181,7 @@ impl State {
     /// q̈, q*, the forces whose work is booked and the phase margins) instead
     /// of copying them. Those fields of `other` are left stale: solving the
     /// sub-step overwrites every one of them.
+    #[inline(always)]
     pub(crate) fn take_step_start(&mut self, other: &mut State) {
         self.time = other.time;
         std::mem::swap(&mut self.q, &mut other.q);

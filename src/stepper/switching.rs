@@ -18,6 +18,7 @@ impl Simulator {
     /// joint's static friction is exceeded), the sub-step is shortened to end
     /// just past that instant, located by Illinois regula falsi, and the
     /// joint's phase is decided there.
+    #[inline(always)]
     pub(crate) fn substep(&mut self, t_target: f64) -> Result<(), StepError> {
         // A phase change that could not happen at the previous instant (a
         // marginal slip) is tried again at this one.
@@ -48,7 +49,7 @@ impl Simulator {
                 break;
             }
             let theta = (lo + (hi - lo) * g_lo / (g_lo - g_hi)).clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
-            self.solve(t0 + theta * h)?;
+            self.solve_out_of_line(t0 + theta * h)?;
             let g = self.state.margin[joint];
             if g < 0.0 {
                 (hi, g_hi, solved_at_hi) = (theta, g, true);
@@ -65,7 +66,7 @@ impl Simulator {
             }
         }
         if !solved_at_hi {
-            self.solve(t0 + hi * h)?;
+            self.solve_out_of_line(t0 + hi * h)?;
         }
         self.accept()?;
         self.instant += 1;
@@ -76,13 +77,14 @@ impl Simulator {
 
     /// The joint whose margin crosses zero first in the solved sub-step, by
     /// linear interpolation of the margins at its ends.
+    #[inline(always)]
     fn earliest_crossing(&self) -> Option<usize> {
         let n = self.model.nq();
         let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
         let (mut best, mut best_theta) = (None, f64::INFINITY);
         for i in 0..n {
             let (g0, g1) = (start[i], end[i]);
-            if g1 < 0.0 && g0 >= 0.0 && g0 < f64::INFINITY {
+            if g1 < 0.0 && (0.0..f64::INFINITY).contains(&g0) {
                 let theta = g0 / (g0 - g1);
                 if theta < best_theta {
                     (best, best_theta) = (Some(i), theta);
@@ -95,6 +97,8 @@ impl Simulator {
     /// Accepts the solved sub-step: checks it is finite and books the works.
     /// Work of a force over a sub-step is its mean times the displacement,
     /// the form in which average-acceleration Newmark balances energy.
+    #[inline(always)]
+    #[allow(clippy::eq_op)] // x − x below is the finiteness test
     fn accept(&mut self) -> Result<(), StepError> {
         let (s, st) = (&self.start, &mut self.state);
         let n = self.model.nq();
@@ -177,6 +181,7 @@ impl Simulator {
     /// at rest that accelerates against its direction is decided anew. Each
     /// joint is decided at most once per instant (`self.instant` moves on
     /// when time moves on).
+    #[inline(always)]
     pub(crate) fn settle_phases(&mut self) -> Result<(), StepError> {
         while let Some(i) = self.pending_phase_change() {
             self.decide_at_rest(i, false)?;
@@ -187,6 +192,7 @@ impl Simulator {
     /// A joint, not yet decided at this instant, whose phase disagrees with
     /// the state: stuck with its static friction exceeded, or slipping against
     /// its direction.
+    #[inline(always)]
     fn pending_phase_change(&self) -> Option<usize> {
         let st = &self.state;
         (0..self.model.nq()).find(|&i| {
