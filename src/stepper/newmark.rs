@@ -59,8 +59,10 @@ impl Simulator {
         self.predict(t, h);
         let nf = self.free.len();
         // Grid sub-steps differ in length by rounding only.
-        let newton_fits =
-            self.newton_valid && (self.newton_h - h).abs() <= 1e-9 * h && self.newton_free[..] == self.free[..];
+        let newton_fits = self.newton_valid
+            && (self.newton_h - h).abs() <= 1e-9 * h
+            && self.newton_free.len() == nf
+            && self.newton_free.iter().zip(&self.free).all(|(a, b)| a == b);
         if !newton_fits {
             self.newton_valid = false;
         }

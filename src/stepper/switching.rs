@@ -117,9 +117,10 @@ impl Simulator {
             return Err(StepError::NonFiniteState { time: st.time });
         }
         // The end of this sub-step is the start of the next one.
-        self.qdd_history.swap(1, 2);
-        self.qdd_history.swap(0, 1);
-        self.qdd_history[0].copy_from_slice(&self.refined_qdd);
+        // The history moves back by one; the refined q̈ becomes its newest
+        // entry, and the oldest buffer is reused for the next refined q̈.
+        self.qdd_history.rotate_right(1);
+        std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
         let dt = st.time - s.time;
         self.previous_h = [dt, self.previous_h[0]];
         self.predictor_depth = (self.predictor_depth + 1).min(2);
@@ -195,16 +196,25 @@ impl Simulator {
     #[inline(always)]
     fn pending_phase_change(&self) -> Option<usize> {
         let st = &self.state;
-        (0..self.model.nq()).find(|&i| {
-            self.decided[i] != self.instant
-                && match st.phase[i] {
-                    Phase::Stuck => st.margin[i] < 0.0,
-                    Phase::Slipping(d) => {
-                        let d = d as f64;
-                        st.margin[i].is_finite() && (d * st.qd[i] < 0.0 || (st.qd[i] == 0.0 && d * st.qdd[i] < 0.0))
-                    }
-                    Phase::Prescribed => false,
+        let n = self.model.nq();
+        // Slices of length n let the compiler drop the per-index bounds checks.
+        let (decided, phase, margin, qd, qdd) = (&self.decided[..n], &st.phase[..n], &st.margin[..n], &st.qd[..n], &st.qdd[..n]);
+        for i in 0..n {
+            if decided[i] == self.instant {
+                continue;
+            }
+            let pending = match phase[i] {
+                Phase::Stuck => margin[i] < 0.0,
+                Phase::Slipping(d) => {
+                    let d = d as f64;
+                    margin[i].is_finite() && (d * qd[i] < 0.0 || (qd[i] == 0.0 && d * qdd[i] < 0.0))
                 }
-        })
+                Phase::Prescribed => false,
+            };
+            if pending {
+                return Some(i);
+            }
+        }
+        None
     }
 }
