@@ -2,7 +2,7 @@
 //! reactions and friction forces made mutually consistent.
 
 use super::simulator::Simulator;
-use super::state::Phase;
+use super::state::{Phase, State};
 use crate::algorithms::crba::{crba, motion_subspace};
 use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, joint_transforms_near_anchors, reaction_point};
 use crate::algorithms::lu;
@@ -73,13 +73,7 @@ impl Simulator {
         const PLAIN_NEWTON_STEPS: usize = 6;
         let mut accepted_merit = f64::INFINITY;
         for iteration in 1..=settings.max_iterations {
-            {
-                let (s, st) = (&self.start, &mut self.state);
-                for &i in &self.free {
-                    st.q[i] = s.q[i] + h * s.qd[i] + h * h * ((0.5 - beta) * s.qdd[i] + beta * st.qdd[i]);
-                    st.qd[i] = s.qd[i] + h * ((1.0 - gamma) * s.qdd[i] + gamma * st.qdd[i]);
-                }
-            }
+            // q and q̇ of the free joints follow their q̈ (see `newmark`).
             self.update_kinematics();
             rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
             // Friction needs the reactions of the joints with friction; the
@@ -105,6 +99,7 @@ impl Simulator {
                 for (k, &i) in self.free.iter().enumerate() {
                     self.newton_step[k] *= 0.5;
                     self.state.qdd[i] = self.accepted_qdd[k] + self.newton_step[k];
+                    newmark(&self.start, &mut self.state, i, h, beta, gamma);
                 }
                 continue;
             }
@@ -125,6 +120,7 @@ impl Simulator {
                 self.accepted_qdd[k] = self.state.qdd[i];
                 self.newton_step[k] = self.correction[k];
                 self.state.qdd[i] += self.correction[k];
+                newmark(&self.start, &mut self.state, i, h, beta, gamma);
             }
         }
         unreachable!("the loop returns on its last iteration")
@@ -160,7 +156,8 @@ impl Simulator {
         let (s, st) = (&self.start, &mut self.state);
         let (q, qd, qdd) = (&mut st.q[..n], &mut st.qd[..n], &mut st.qdd[..n]);
         let (q_star, qd_star, phase) = (&mut st.q_star[..n], &mut st.qd_star[..n], &st.phase[..n]);
-        let start_q = &s.q[..n];
+        let (start_q, start_qd, start_qdd) = (&s.q[..n], &s.qd[..n], &s.qdd[..n]);
+        let (beta, gamma) = (self.model.integrator.beta, self.model.integrator.gamma);
         let [h0, h1, h2] = &self.qdd_history;
         let (h0, h1, h2) = (&h0[..n], &h1[..n], &h2[..n]);
         self.free.clear();
@@ -181,7 +178,9 @@ impl Simulator {
                 }
                 Phase::Slipping(_) => {
                     self.free.push(i);
-                    qdd[i] = w0 * h0[i] + w1 * h1[i] + w2 * h2[i];
+                    let qdd_i = w0 * h0[i] + w1 * h1[i] + w2 * h2[i];
+                    qdd[i] = qdd_i;
+                    (q[i], qd[i]) = newmark_step(start_q[i], start_qd[i], start_qdd[i], qdd_i, h, beta, gamma);
                 }
             }
         }
@@ -354,6 +353,20 @@ impl Simulator {
         }
         (worst, merit)
     }
+}
+
+/// The Newmark relations: q₁ = q₀ + h·q̇₀ + h²·((½ − β)·q̈₀ + β·q̈₁) and
+/// q̇₁ = q̇₀ + h·((1 − γ)·q̈₀ + γ·q̈₁), from the start (q₀, q̇₀, q̈₀) and q̈₁.
+#[inline(always)]
+fn newmark_step(q0: f64, qd0: f64, qdd0: f64, qdd1: f64, h: f64, beta: f64, gamma: f64) -> (f64, f64) {
+    (q0 + h * qd0 + h * h * ((0.5 - beta) * qdd0 + beta * qdd1), qd0 + h * ((1.0 - gamma) * qdd0 + gamma * qdd1))
+}
+
+/// Sets q and q̇ of joint `i` of `state` from its q̈ by [`newmark_step`]
+/// from `start`.
+#[inline(always)]
+fn newmark(start: &State, state: &mut State, i: usize, h: f64, beta: f64, gamma: f64) {
+    (state.q[i], state.qd[i]) = newmark_step(start.q[i], start.qd[i], start.qdd[i], state.qdd[i], h, beta, gamma);
 }
 
 /// Size of the reaction a joint carries, as a floor for relative residuals:

@@ -108,26 +108,14 @@ impl Simulator {
         let (s_q, s_q_star) = (&s.q[..n], &s.q_star[..n]);
         let (s_drive, s_friction, s_damping) = (&s.drive_force[..n], &s.friction_force[..n], &s.damping_force[..n]);
         let (phase, stuck_time) = (&st.phase[..n], &mut st.stuck_time[..n]);
+        let dt = st.time - s.time;
+        // The drive moves its end q* (for a rigid drive q* = q): it works
+        // through Δq*, its damper dissipates over Δq* − Δq (zero when rigid).
+        let (mut drive_work, mut friction_heat, mut damping_heat) = (0.0, 0.0, 0.0);
         // x − x is 0 for every finite x and NaN otherwise.
         let mut finite = 0.0;
         for i in 0..n {
             finite += (q[i] - q[i]) + (qd[i] - qd[i]) + (qdd[i] - qdd[i]);
-        }
-        if finite != 0.0 {
-            return Err(StepError::NonFiniteState { time: st.time });
-        }
-        // The end of this sub-step is the start of the next one.
-        // The history moves back by one; the refined q̈ becomes its newest
-        // entry, and the oldest buffer is reused for the next refined q̈.
-        self.qdd_history.rotate_right(1);
-        std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
-        let dt = st.time - s.time;
-        self.previous_h = [dt, self.previous_h[0]];
-        self.predictor_depth = (self.predictor_depth + 1).min(2);
-        // The drive moves its end q* (for a rigid drive q* = q): it works
-        // through Δq*, its damper dissipates over Δq* − Δq (zero when rigid).
-        let (mut drive_work, mut friction_heat, mut damping_heat) = (0.0, 0.0, 0.0);
-        for i in 0..n {
             if matches!(phase[i], Phase::Stuck) {
                 stuck_time[i] += dt;
             }
@@ -137,6 +125,17 @@ impl Simulator {
             friction_heat += (s_friction[i] + friction[i]) * dq;
             damping_heat += (s_damping[i] + damping[i]) * (dq_star - dq);
         }
+        if finite != 0.0 {
+            // `advance` restores the state of the interval's start.
+            return Err(StepError::NonFiniteState { time: st.time });
+        }
+        // The end of this sub-step is the start of the next one.
+        // The history moves back by one; the refined q̈ becomes its newest
+        // entry, and the oldest buffer is reused for the next refined q̈.
+        self.qdd_history.rotate_right(1);
+        std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
+        self.previous_h = [dt, self.previous_h[0]];
+        self.predictor_depth = (self.predictor_depth + 1).min(2);
         let e = &mut st.energy;
         e.drive_work += 0.5 * drive_work;
         e.friction_heat += 0.5 * friction_heat;
