@@ -137,7 +137,8 @@ impl Simulator {
     /// Sets up the sub-step to time `t` (length `h`): the drive inputs at
     /// `t`, the prescribed motion of rigid joints, stuck joints held at their
     /// start, the list of free (slipping) joints and their predicted q̈:
-    /// the Lagrange extrapolation of the last three refined accelerations.
+    /// the Lagrange extrapolation of the last three refined accelerations,
+    /// and the q, q̇ that the Newmark relations give for it.
     #[inline(always)]
     fn predict(&mut self, t: f64, h: f64) {
         let n = self.model.nq();
