@@ -1,8 +1,7 @@
 //! The workspace of the algorithms: everything that is computed, sized once
 //! from the model so that nothing allocates on the hot path.
 
-use crate::algorithms::kinematics::{DhRotation, ThetaAnchor};
-use crate::math::{Mat3, Mat6, MatN, Vec3};
+use crate::math::{DhRotation, Mat3, Mat6, MatN, ThetaAnchor, Vec3};
 use crate::model::Model;
 
 /// Kinematic and dynamic workspace of one model (Pinocchio's `Data`).
@@ -36,6 +35,13 @@ pub struct Data {
     /// rotations were last computed by the library (see
     /// [`joint_transforms_near_anchors`](crate::algorithms::kinematics::joint_transforms_near_anchors)).
     pub theta_anchor: Vec<ThetaAnchor>,
+    /// Joint coordinates of the joint transforms (`dh_rotation`, `dh_d`,
+    /// `link_offset`).
+    pub transforms_q: Vec<f64>,
+    /// False when the joint transforms must be recomputed by the library's
+    /// sines before they are used (see
+    /// [`update_joint_transforms`](crate::algorithms::kinematics::update_joint_transforms)).
+    pub transforms_current: bool,
     /// d_i at the last joint coordinates, m.
     pub dh_d: Vec<f64>,
     /// O_i − O_{i−1} resolved in frame i: (a_i, d_i·sin α_i, d_i·cos α_i), m.
@@ -83,6 +89,8 @@ impl Data {
                     ThetaAnchor { q: 0.0, sin_theta, cos_theta }
                 })
                 .collect(),
+            transforms_q: vec![0.0; n],
+            transforms_current: false,
             dh_d: vec![0.0; n],
             link_offset: vec![Vec3::zeros(); n],
             omega: vec![Vec3::zeros(); n + 1],

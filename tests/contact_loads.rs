@@ -11,10 +11,13 @@
 mod common;
 
 use common::Rng;
-use stick_slip_manipulator::forces::drive::{drive_force, spring_energy};
-use stick_slip_manipulator::forces::friction::{bearing_loads, contact_load, slider_normal_load};
+use stick_slip_manipulator::forces::drive::{acceleration_stiffness, clearance_margin, drive_force, spring_energy, DriveForce};
+use stick_slip_manipulator::forces::friction::{
+    bearing_loads, contact_load, holds_statically, prescribed_friction, slider_normal_load, slip_friction,
+    slip_friction_load_derivative, slip_friction_velocity_slope, stuck_friction,
+};
 use stick_slip_manipulator::math::Vec3;
-use stick_slip_manipulator::model::{ContactGeometry, FrictionCoefficients};
+use stick_slip_manipulator::model::{ContactGeometry, FrictionCoefficients, JointFriction};
 
 #[test]
 fn bearing_forces_balance_the_joint_reaction() {
@@ -84,18 +87,98 @@ fn slider_corner_forces_balance_the_reaction() {
 #[test]
 fn drive_force_with_clearance_is_eq_2_1() {
     let (k, h, gap) = (1e6, 1e3, 0.002);
+    let force = |q_star, qd_star, q, qd| drive_force(k, h, gap, q_star, qd_star, q, qd);
     // Inside the clearance the drive transmits nothing, damping included.
-    assert_eq!(drive_force(k, h, gap, 0.0015, 1.0, 0.0, 0.0), 0.0);
-    assert_eq!(drive_force(k, h, gap, -0.0015, 1.0, 0.0, 0.0), 0.0);
-    // Outside: k(q* − q − σΔ) + h(q̇* − q̇), σ = sgn(q* − q).
-    assert!((drive_force(k, h, gap, 0.005, 0.3, 0.001, 0.1) - (k * (0.004 - gap) + h * 0.2)).abs() < 1e-9);
-    assert!((drive_force(k, h, gap, -0.005, 0.3, 0.001, 0.1) - (k * (-0.006 + gap) + h * 0.2)).abs() < 1e-9);
-    // The elastic part is continuous where the clearance is taken up.
-    assert!(drive_force(k, 0.0, gap, gap * (1.0 + 1e-12), 0.0, 0.0, 0.0).abs() < 1e-6);
+    for q_star in [0.0015, -0.0015] {
+        assert_eq!(force(q_star, 1.0, 0.0, 0.0), DriveForce { force: 0.0, damping: 0.0, engaged: false });
+    }
+    // Outside: k(q* − q − σΔ) + h(q̇* − q̇), σ = sgn(q* − q); damping part h(q̇* − q̇).
+    let out = force(0.005, 0.3, 0.001, 0.1);
+    assert!(out.engaged);
+    assert!((out.force - (k * (0.004 - gap) + h * 0.2)).abs() < 1e-9);
+    assert!((out.damping - h * 0.2).abs() < 1e-12);
+    assert!((force(-0.005, 0.3, 0.001, 0.1).force - (k * (-0.006 + gap) + h * 0.2)).abs() < 1e-9);
+    // The elastic part is continuous where the clearance is taken up, and
+    // δ switches exactly where the clearance margin |q* − q| − Δ crosses zero.
+    assert!(drive_force(k, 0.0, gap, gap * (1.0 + 1e-12), 0.0, 0.0, 0.0).force.abs() < 1e-6);
+    for e in [gap * (1.0 - 1e-9), gap, gap * (1.0 + 1e-9), -gap * (1.0 + 1e-9)] {
+        assert_eq!(drive_force(k, h, gap, e, 0.0, 0.0, 0.0).engaged, clearance_margin(gap, e) >= 0.0, "e = {e}");
+    }
     assert!((spring_energy(k, gap, 0.005, 0.0) - 0.5 * k * 0.003f64.powi(2)).abs() < 1e-12);
     assert_eq!(spring_energy(k, gap, 0.001, 0.0), 0.0);
     // No clearance: a plain spring and damper.
-    assert_eq!(drive_force(k, h, 0.0, 1e-3, 0.0, 0.0, 0.0), 1e3);
+    assert_eq!(drive_force(k, h, 0.0, 1e-3, 0.0, 0.0, 0.0).force, 1e3);
+    // A NaN deflection is not hidden as "inside the clearance".
+    assert!(drive_force(k, h, gap, f64::NAN, 0.0, 0.0, 0.0).force.is_nan());
+}
+
+/// −∂F^d/∂q̈ through the Newmark relations (q by βh², q̇ by γh per unit q̈)
+/// equals a difference quotient of (2.1) itself.
+#[test]
+fn drive_acceleration_stiffness_is_the_derivative_of_eq_2_1() {
+    let (k, h_d, gap) = (2e6, 3e2, 1e-3);
+    let (h, beta, gamma) = (2e-5, 0.25, 0.5);
+    let (q_star, qd_star, q0, qd0) = (0.01, 0.2, 0.0, 0.05);
+    let at = |dqdd: f64| drive_force(k, h_d, gap, q_star, qd_star, q0 + beta * h * h * dqdd, qd0 + gamma * h * dqdd).force;
+    // (2.1) is linear outside the clearance: a large step loses nothing to rounding.
+    let step = 100.0;
+    let difference = -(at(step) - at(-step)) / (2.0 * step);
+    let engaged = drive_force(k, h_d, gap, q_star, qd_star, q0, qd0).engaged;
+    let analytic = acceleration_stiffness(k, h_d, engaged, h, beta, gamma);
+    assert!((difference - analytic).abs() < 1e-9 * analytic, "{difference} vs {analytic}");
+    assert_eq!(acceleration_stiffness(k, h_d, false, h, beta, gamma), 0.0);
+}
+
+/// (3.16)–(3.18): a stuck joint's friction balances F^d − F*, its margin is
+/// the static reserve; a slipping joint's friction opposes its direction with
+/// μ(q̇)·L, its margin is d·q̇ when static friction can hold it.
+#[test]
+fn friction_of_each_phase() {
+    let coefficients = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01 };
+    let geometry = ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.07 };
+    let friction = JointFriction { coefficients, geometry };
+    let lever = 50.0;
+    let held = stuck_friction(Some(coefficients), lever, 30.0, 25.0);
+    assert_eq!(held.force, 5.0);
+    assert!((held.margin - (0.2 * 50.0 - 5.0)).abs() < 1e-12);
+    assert!(stuck_friction(Some(coefficients), lever, 30.0, 19.0).margin < 0.0, "|F^d − F*| = 11 > μ_s L = 10 breaks away");
+    for d in [1i8, -1] {
+        let slip = slip_friction(Some(&friction), lever, 0.02 * d as f64, d);
+        assert!((slip.force - d as f64 * coefficients.kinetic(0.02) * lever).abs() < 1e-12);
+        assert!((slip.margin - 0.02).abs() < 1e-15);
+    }
+    let frictionless_static = JointFriction { coefficients: FrictionCoefficients { mu_static: 0.0, mu_kinetic: 0.0, stribeck_velocity: 0.0 }, geometry };
+    assert_eq!(slip_friction(Some(&frictionless_static), lever, 0.1, 1).margin, f64::INFINITY);
+    assert!(holds_statically(Some(&friction)) && !holds_statically(Some(&frictionless_static)) && !holds_statically(None));
+    assert_eq!(prescribed_friction(Some(coefficients), lever, -0.5), -coefficients.kinetic(-0.5) * lever);
+    assert_eq!(prescribed_friction(Some(coefficients), lever, 0.0), 0.0);
+    // The velocity slope is dF^f/dq̇ of the slip law.
+    let (qd, dv) = (0.013, 1e-7);
+    let slope = (slip_friction(Some(&friction), lever, qd + dv, 1).force - slip_friction(Some(&friction), lever, qd - dv, 1).force) / (2.0 * dv);
+    let analytic = slip_friction_velocity_slope(coefficients, lever, qd, 1);
+    assert!((slope - analytic).abs() < 1e-6 * analytic.abs(), "{slope} vs {analytic}");
+}
+
+/// The friction Jacobian's reaction term is the derivative of μ·L(f, n)
+/// along a change of the reaction, away from the kinks of (3.11), (3.15).
+#[test]
+fn friction_load_derivative_is_the_derivative_of_the_contact_law() {
+    let coefficients = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0 };
+    let geometries = [
+        ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.05 },
+        ContactGeometry::Bearings { reaction_point: Vec3::zeros(), l_a: 0.06, l_b: 0.04, d_a: 0.1, d_b: 0.08, d_c: 0.1 },
+    ];
+    let (f, n) = (Vec3::new(30.0, -12.0, 7.0), Vec3::new(2.0, 1.5, -0.7));
+    let (df, dn) = (Vec3::new(0.3, 0.2, -0.1), Vec3::new(-0.05, 0.02, 0.01));
+    for geometry in geometries {
+        let friction = JointFriction { coefficients, geometry };
+        let lever = contact_load(&geometry, &f, &n).lever_load;
+        let s = 1e-4;
+        let lever_at = |t: f64| contact_load(&geometry, &(f + df * t), &(n + dn * t)).lever_load;
+        let central = -0.2 * (lever_at(s) - lever_at(-s)) / (2.0 * s);
+        let derivative = slip_friction_load_derivative(&friction, lever, 0.1, -1, &f, &n, &df, &dn);
+        assert!((derivative - central).abs() < 1e-5 * central.abs(), "{geometry:?}: {derivative} vs {central}");
+    }
 }
 
 #[test]

@@ -74,10 +74,10 @@ fn bias_and_generalized_forces_rnea_equal_lagrange() {
         let mut data = Data::new(&model);
         let terms = lagrange::lagrange_terms(&model, &q, &qd);
         forward_kinematics(&model, &mut data, &q);
-        rnea(&model, &mut data, &qd, &vec![0.0; n]);
+        rnea(&model, &mut data, &q, &qd, &vec![0.0; n]);
         let bias: VecN = &terms.velocity_terms + &terms.gravity;
         assert_close(&format!("{} bias", model.name), &data.tau, bias.as_slice());
-        rnea(&model, &mut data, &qd, &qdd);
+        rnea(&model, &mut data, &q, &qd, &qdd);
         let tau: VecN = &terms.mass * VecN::from_column_slice(&qdd) + bias;
         assert_close(&format!("{} tau", model.name), &data.tau, tau.as_slice());
     }
@@ -90,11 +90,11 @@ fn gravity_and_velocity_terms_separately() {
         let n = model.nq();
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &q);
-        rnea(&model, &mut data, &vec![0.0; n], &vec![0.0; n]);
+        rnea(&model, &mut data, &q, &vec![0.0; n], &vec![0.0; n]);
         let gravity = lagrange::lagrange_terms(&model, &q, &qd).gravity;
         assert_close("gravity", &data.tau, gravity.as_slice());
         model.gravity = Vec3::zeros();
-        rnea(&model, &mut data, &qd, &vec![0.0; n]);
+        rnea(&model, &mut data, &q, &qd, &vec![0.0; n]);
         let terms = lagrange::lagrange_terms(&model, &q, &qd);
         // A single joint has no velocity terms: compare with the size of M·q̇².
         let floor = terms.mass.amax() * qd.iter().fold(0.0f64, |m, x| m.max(x * x));
@@ -108,7 +108,7 @@ fn energies_agree_between_formulations() {
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &q);
         crba(&model, &mut data);
-        rnea(&model, &mut data, &qd, &vec![0.0; model.nq()]);
+        rnea(&model, &mut data, &q, &qd, &vec![0.0; model.nq()]);
         let qd_v = VecN::from_column_slice(&qd);
         let quadratic = 0.5 * qd_v.dot(&(&data.mass_matrix * &qd_v));
         let t_33 = lagrange::kinetic_energy(&model, &q, &qd);
@@ -135,7 +135,7 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
         let n = model.nq();
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &q);
-        rnea(&model, &mut data, &qd, &qdd);
+        rnea(&model, &mut data, &q, &qd, &qdd);
         for s in 1..=n {
             let p = b_derivative(&model, &q, s - 1, &[]).fixed_view::<3, 1>(0, 3).into_owned();
             let (mut f, mut m) = (Vec3::zeros(), Vec3::zeros());

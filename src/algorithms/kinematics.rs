@@ -2,7 +2,7 @@
 //! B_i = A_1…A_i (study eqs. 3.1, 3.2), and the end point E.
 
 use crate::data::Data;
-use crate::math::{Mat3, Mat4, Vec3};
+use crate::math::{sin_cos_near, DhRotation, Mat3, Mat4, ThetaAnchor, Vec3, ANCHOR_REACH};
 use crate::model::{Joint, JointKind, Model};
 
 /// θ_i and d_i of joint `joint` at joint coordinate `q`.
@@ -29,65 +29,6 @@ pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
     )
 }
 
-/// The rotation of a DH transform A_i (eq. 3.1), R_i = Rot_z(θ_i)·Rot_x(α_i),
-/// by the sines and cosines of its two angles.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DhRotation {
-    /// sin θ_i.
-    pub sin_theta: f64,
-    /// cos θ_i.
-    pub cos_theta: f64,
-    /// sin α_i.
-    pub sin_alpha: f64,
-    /// cos α_i.
-    pub cos_alpha: f64,
-}
-
-impl DhRotation {
-    /// R_i for the angles θ, α.
-    pub fn new(theta: f64, alpha: f64) -> DhRotation {
-        let ((sin_theta, cos_theta), (sin_alpha, cos_alpha)) = (theta.sin_cos(), alpha.sin_cos());
-        DhRotation { sin_theta, cos_theta, sin_alpha, cos_alpha }
-    }
-
-    /// R_iᵀ·v: a vector resolved in frame i−1 resolved in frame i.
-    #[inline]
-    pub fn to_child(&self, v: &Vec3) -> Vec3 {
-        let (st, ct, sa, ca) = (self.sin_theta, self.cos_theta, self.sin_alpha, self.cos_alpha);
-        let (x, y) = (ct * v.x + st * v.y, ct * v.y - st * v.x);
-        Vec3::new(x, ca * y + sa * v.z, ca * v.z - sa * y)
-    }
-
-    /// R_i·v: a vector resolved in frame i resolved in frame i−1.
-    #[inline]
-    pub fn to_parent(&self, v: &Vec3) -> Vec3 {
-        let (st, ct) = (self.sin_theta, self.cos_theta);
-        let u = self.to_joint_frame(v);
-        Vec3::new(ct * u.x - st * u.y, st * u.x + ct * u.y, u.z)
-    }
-
-    /// Rot_x(α_i)·v: a vector resolved in frame i resolved in the joint frame
-    /// of joint i (frame i−1 turned by θ_i; z the joint axis).
-    #[inline]
-    pub fn to_joint_frame(&self, v: &Vec3) -> Vec3 {
-        let (sa, ca) = (self.sin_alpha, self.cos_alpha);
-        Vec3::new(v.x, ca * v.y - sa * v.z, sa * v.y + ca * v.z)
-    }
-
-    /// Rot_z(θ_i)ᵀ·v: a vector resolved in frame i−1 resolved in the joint frame.
-    #[inline]
-    pub fn parent_to_joint_frame(&self, v: &Vec3) -> Vec3 {
-        let (st, ct) = (self.sin_theta, self.cos_theta);
-        Vec3::new(ct * v.x + st * v.y, ct * v.y - st * v.x, v.z)
-    }
-
-    /// The joint axis z_{i−1} resolved in frame i: R_iᵀ·e_z = (0, sin α_i, cos α_i).
-    #[inline]
-    pub fn axis_in_child(&self) -> Vec3 {
-        Vec3::new(0.0, self.sin_alpha, self.cos_alpha)
-    }
-}
-
 /// The joint-dependent parts of the DH transforms A_i (eq. 3.1) at joint
 /// coordinates `q`: the rotations in `data.dh_rotation`, d_i in `data.dh_d`
 /// and the link offset p_i = O_i − O_{i−1} resolved in frame i,
@@ -98,6 +39,7 @@ impl DhRotation {
 #[inline(always)]
 pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
     dh_joint_parts(model, data, q, false);
+    record_transforms(data, q);
 }
 
 /// As [`joint_transforms`], but the sine and cosine of a revolute joint
@@ -109,22 +51,39 @@ pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
 #[inline(always)]
 pub fn joint_transforms_near_anchors(model: &Model, data: &mut Data, q: &[f64]) {
     dh_joint_parts(model, data, q, true);
+    record_transforms(data, q);
 }
 
-/// How far from its anchor a joint's sine and cosine are expanded, rad.
-pub const ANCHOR_REACH: f64 = 1e-2;
-
-/// (sin(θ₀ + δ), cos(θ₀ + δ)) from s₀ = sin θ₀, c₀ = cos θ₀ for |δ| ≤
-/// [`ANCHOR_REACH`]: sin δ and cos δ − 1 by their Taylor series to δ⁵ and
-/// δ⁶ (the first omitted terms are below 2e-18), added to s₀, c₀ as small
-/// corrections so that the result is within about one rounding of the exact
-/// value.
+/// Brings the joint transforms in `data` to the coordinates `q`, the way a
+/// stepper needs them: by the library's sines ([`joint_transforms`]) when
+/// `data` holds none that are current (see [`forget_joint_transforms`]),
+/// not at all when q differs from their coordinates by rounding only (a
+/// Newton correction moves q by βh²·Δq̈, often below 1e-15), else expanded
+/// about the anchors ([`joint_transforms_near_anchors`]). Either way the
+/// result is a function of the coordinates of the last library evaluation
+/// and of `q` only, so a restored state continues bit for bit.
 #[inline(always)]
-pub fn sin_cos_near(s0: f64, c0: f64, delta: f64) -> (f64, f64) {
-    let d2 = delta * delta;
-    let cos_m1 = d2 * (-0.5 + d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)));
-    let sin_d = delta * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)));
-    (s0 + (s0 * cos_m1 + c0 * sin_d), c0 + (c0 * cos_m1 - s0 * sin_d))
+pub fn update_joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
+    if !data.transforms_current {
+        joint_transforms(model, data, q);
+        return;
+    }
+    let moved = q.iter().zip(&data.transforms_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
+    if moved {
+        joint_transforms_near_anchors(model, data, q);
+    }
+}
+
+/// Marks the joint transforms in `data` as not current: the next
+/// [`update_joint_transforms`] computes them by the library's sines.
+pub fn forget_joint_transforms(data: &mut Data) {
+    data.transforms_current = false;
+}
+
+#[inline(always)]
+fn record_transforms(data: &mut Data, q: &[f64]) {
+    data.transforms_q.copy_from_slice(q);
+    data.transforms_current = true;
 }
 
 #[inline(always)]
@@ -152,18 +111,6 @@ fn dh_joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool)
     }
 }
 
-/// A revolute joint's coordinate and the sine and cosine of its θ there,
-/// computed by the library.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ThetaAnchor {
-    /// Joint coordinate q, rad.
-    pub q: f64,
-    /// sin(θ_DH + q).
-    pub sin_theta: f64,
-    /// cos(θ_DH + q).
-    pub cos_theta: f64,
-}
-
 /// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
 /// the joint frames, and every link's centre of mass and inertia in frame 0,
 /// for joint coordinates `q` (length n); it first calls [`joint_transforms`]
@@ -171,6 +118,23 @@ pub struct ThetaAnchor {
 /// cosines of the constant DH angles).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     joint_transforms(model, data, q);
+    frame_kinematics(model, data);
+}
+
+/// [`forward_kinematics`] at the coordinates of the joint transforms in
+/// `data` (those the last inverse dynamics used), their sines recomputed by
+/// the library.
+pub fn forward_kinematics_at_transforms(model: &Model, data: &mut Data) {
+    // Taken out and put back: no copy, no allocation.
+    let q = std::mem::take(&mut data.transforms_q);
+    dh_joint_parts(model, data, &q, false);
+    data.transforms_q = q;
+    data.transforms_current = true;
+    frame_kinematics(model, data);
+}
+
+/// The frame-0 part of [`forward_kinematics`] from the joint transforms in `data`.
+fn frame_kinematics(model: &Model, data: &mut Data) {
     let n = model.nq();
     // One check up front lets the compiler drop the per-index bounds checks.
     assert!(

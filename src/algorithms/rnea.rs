@@ -4,17 +4,17 @@
 //! only the DH transforms A_i of [`joint_transforms`](super::kinematics::joint_transforms)
 //! (a rotation by θ_i about z and one by α_i about x) and no frame-0 kinematics.
 
-use super::kinematics::reaction_offset;
+use super::kinematics::{reaction_offset, update_joint_transforms};
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
 
-/// Inverse dynamics at the configuration of the last
-/// [`joint_transforms`](super::kinematics::joint_transforms) (or
-/// [`forward_kinematics`](super::kinematics::forward_kinematics)) call.
+/// Inverse dynamics at joint coordinates `q`, velocities `qd` and
+/// accelerations `qdd` (each of length n); gravity is the model's.
 ///
-/// `qd`, `qdd`: joint velocities and accelerations (length n). Gravity is the
-/// model's. Results: `data.tau` (τ = M q̈ + bias, length n), the joint forces
+/// Reads the joint transforms in `data`, brought to `q` first by
+/// [`update_joint_transforms`] (not recomputed when they are current for `q`).
+/// Results: `data.tau` (τ = M q̈ + bias, length n), the joint forces
 /// `data.force[i]` and moments `data.moment[i]` (about the origin of frame
 /// i−1) exerted by link i−1 on link i, resolved in frame i, and the link
 /// angular velocities and accelerations and origin accelerations, each in its
@@ -23,7 +23,8 @@ use crate::model::{JointKind, Model};
 /// The forward loop carries velocities and accelerations from link 1 to n,
 /// the backward loop the joint forces from joint n to 1.
 #[inline(always)]
-pub fn rnea(model: &Model, data: &mut Data, qd: &[f64], qdd: &[f64]) {
+pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) {
+    update_joint_transforms(model, data, q);
     let n = model.nq();
     // One check up front lets the compiler drop the per-index bounds checks.
     assert!(

@@ -1,8 +1,130 @@
-//! Normal loads and dry friction of revolute and prismatic joints
-//! (study sections 3.1, 3.2).
+//! Dry friction of revolute and prismatic joints (study sections 3.1, 3.2):
+//! the kinetic characteristic μ(v), the normal loads of bearings and sliders
+//! (3.11), (3.13)–(3.15), the friction of each phase with its margin to the
+//! next phase change (3.16)–(3.18), and the derivatives the Newton iteration
+//! needs, next to the laws they differentiate.
 
 use crate::math::Vec3;
-use crate::model::ContactGeometry;
+use crate::model::{ContactGeometry, FrictionCoefficients, JointFriction};
+
+impl FrictionCoefficients {
+    /// Kinetic coefficient at sliding velocity `v`:
+    /// μ(v) = μ_k + (μ_s − μ_k)·exp(−|v|/v_s) (the decreasing characteristic of
+    /// the study's Fig. 2), or μ_k when v_s = 0.
+    #[inline]
+    pub fn kinetic(&self, v: f64) -> f64 {
+        if self.stribeck_velocity > 0.0 {
+            self.mu_kinetic + (self.mu_static - self.mu_kinetic) * (-v.abs() / self.stribeck_velocity).exp()
+        } else {
+            self.mu_kinetic
+        }
+    }
+
+    /// dμ/dv of [`FrictionCoefficients::kinetic`] at sliding velocity `v`.
+    #[inline]
+    pub fn kinetic_slope(&self, v: f64) -> f64 {
+        if self.stribeck_velocity > 0.0 && v != 0.0 {
+            -(self.mu_static - self.mu_kinetic) / self.stribeck_velocity
+                * (-v.abs() / self.stribeck_velocity).exp()
+                * v.signum()
+        } else {
+            0.0
+        }
+    }
+}
+
+/// True if the joint has static friction that can hold it (μ_s > 0): only
+/// such a joint can enter a stiction phase.
+#[inline(always)]
+pub fn holds_statically(friction: Option<&JointFriction>) -> bool {
+    friction.is_some_and(|f| f.coefficients.mu_static > 0.0)
+}
+
+/// Friction of a joint in its current phase, signed so that F^d − F^f is
+/// its generalized force (3.10), and how far the joint is from its next
+/// phase change: the phase holds while `margin` ≥ 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhaseFriction {
+    /// F^f, N or N·m.
+    pub force: f64,
+    /// Distance to the next phase change (see the constructors).
+    pub margin: f64,
+}
+
+/// A stuck joint (3.16)–(3.18): static friction holds it with
+/// F^f = F^d − F*, where F* (3.17) is the axial reaction with the joint
+/// held; the margin is the static reserve F̄^f − |F^d − F*|, with
+/// F̄^f = μ_s·`lever_load` (3.12) or (3.14) with the static coefficient.
+#[inline(always)]
+pub fn stuck_friction(coefficients: Option<FrictionCoefficients>, lever_load: f64, drive_force: f64, axial_reaction: f64) -> PhaseFriction {
+    let static_limit = coefficients.map_or(0.0, |c| c.mu_static) * lever_load;
+    let held = drive_force - axial_reaction;
+    PhaseFriction { force: held, margin: static_limit - held.abs() }
+}
+
+/// A joint slipping in direction `direction` (±1): kinetic friction
+/// μ(q̇)·L·d opposes it, (3.12), (3.14). The margin is d·q̇ for a joint that
+/// static friction can hold (it may stick where its velocity reaches zero),
+/// +∞ for one that cannot.
+#[inline(always)]
+pub fn slip_friction(friction: Option<&JointFriction>, lever_load: f64, qd: f64, direction: i8) -> PhaseFriction {
+    let d = direction as f64;
+    let force = friction.map_or(0.0, |f| f.coefficients.kinetic(qd)) * lever_load * d;
+    let margin = if holds_statically(friction) { d * qd } else { f64::INFINITY };
+    PhaseFriction { force, margin }
+}
+
+/// Friction a rigid drive overcomes while its joint moves: μ(q̇)·L·sgn q̇.
+#[inline(always)]
+pub fn prescribed_friction(coefficients: Option<FrictionCoefficients>, lever_load: f64, qd: f64) -> f64 {
+    coefficients.map_or(0.0, |c| c.kinetic(qd) * lever_load * sign(qd))
+}
+
+/// ∂F^f/∂q̇ of [`slip_friction`] at a fixed lever load: d·L·μ'(q̇). In a
+/// Newmark sub-step q̇ moves by γh per unit of q̈.
+#[inline(always)]
+pub fn slip_friction_velocity_slope(coefficients: FrictionCoefficients, lever_load: f64, qd: f64, direction: i8) -> f64 {
+    direction as f64 * lever_load * coefficients.kinetic_slope(qd)
+}
+
+/// Derivative of the kinetic friction μ(q̇)·L·d of a slipping joint
+/// (`direction` d) through its lever load L (friction per unit coefficient,
+/// here `lever_load` under the joint force `f` and moment `n`) along the
+/// change (`df`, `dn`) of that reaction, at fixed q̇. A one-sided difference of
+/// [`contact_load`] with a step of 1e-7 of the reaction's size: the loads are
+/// sums of absolute values and norms, one-sided at their kinks.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn slip_friction_load_derivative(
+    friction: &JointFriction,
+    lever_load: f64,
+    qd: f64,
+    direction: i8,
+    f: &Vec3,
+    n: &Vec3,
+    df: &Vec3,
+    dn: &Vec3,
+) -> f64 {
+    let mu = friction.coefficients.kinetic(qd);
+    if mu == 0.0 {
+        return 0.0;
+    }
+    let size = f.norm() + n.norm();
+    let step = 1e-7 * size.max(1e-9) / (df.norm() + dn.norm()).max(1e-300);
+    let shifted = contact_load(&friction.geometry, &(f + df * step), &(n + dn * step)).lever_load;
+    direction as f64 * mu * (shifted - lever_load) / step
+}
+
+#[inline(always)]
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
 
 /// Contact loads of a joint computed from its reaction.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

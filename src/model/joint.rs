@@ -50,7 +50,8 @@ impl Drive {
     }
 }
 
-/// Friction coefficients of a joint and its kinetic characteristic.
+/// Friction coefficients of a joint; their characteristic μ(v) is in
+/// [`crate::forces::friction`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrictionCoefficients {
     /// Kinetic coefficient μ_k (at high sliding velocity), ≥ 0.
@@ -60,33 +61,6 @@ pub struct FrictionCoefficients {
     /// Stribeck velocity v_s ≥ 0, m/s or rad/s; 0 means a constant kinetic
     /// coefficient μ_k.
     pub stribeck_velocity: f64,
-}
-
-impl FrictionCoefficients {
-    /// Kinetic coefficient at sliding velocity `v`:
-    /// μ(v) = μ_k + (μ_s − μ_k)·exp(−|v|/v_s) (the decreasing characteristic of
-    /// the study's Fig. 2), or μ_k when v_s = 0.
-    #[inline]
-    pub fn kinetic(&self, v: f64) -> f64 {
-        if self.stribeck_velocity > 0.0 {
-            self.mu_kinetic
-                + (self.mu_static - self.mu_kinetic) * (-v.abs() / self.stribeck_velocity).exp()
-        } else {
-            self.mu_kinetic
-        }
-    }
-
-    /// dμ/dv of the kinetic characteristic at sliding velocity `v`.
-    #[inline]
-    pub fn kinetic_slope(&self, v: f64) -> f64 {
-        if self.stribeck_velocity > 0.0 && v != 0.0 {
-            -(self.mu_static - self.mu_kinetic) / self.stribeck_velocity
-                * (-v.abs() / self.stribeck_velocity).exp()
-                * v.signum()
-        } else {
-            0.0
-        }
-    }
 }
 
 /// Where the normal loads of a joint come from (study sections 3.1, 3.2).

@@ -1,48 +1,140 @@
 //! One sub-step of the iterative Newmark method: accelerations, joint
 //! reactions and friction forces made mutually consistent.
+//!
+//! [`NewmarkSolver`] owns everything the iteration keeps between sub-steps:
+//! the slipping joints, the factored Newton matrix and when it may be reused,
+//! and the accelerations the predictor extrapolates from. Its invariants are
+//! kept here; the simulator only asks it to solve a sub-step, to accept one,
+//! or to start afresh.
 
-use super::simulator::Simulator;
+use super::inputs::InputPolynomial;
 use super::state::{Phase, State};
 use crate::algorithms::crba::{crba, motion_subspace};
-use crate::algorithms::kinematics::{forward_kinematics, joint_transforms, joint_transforms_near_anchors, reaction_point};
+use crate::algorithms::kinematics::{forward_kinematics_at_transforms, reaction_point};
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
+use crate::data::Data;
 use crate::error::StepError;
-use crate::forces::drive::drive_force as drive_force_of;
-use crate::forces::friction::contact_load;
-use crate::model::{Drive, Joint};
+use crate::forces::drive::{acceleration_stiffness, drive_force};
+use crate::forces::friction::{
+    contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
+    stuck_friction,
+};
+use crate::model::{Drive, Joint, JointKind, Model};
 
-/// True if the joint has static friction that can hold it.
-pub(crate) fn holds_statically(joint: &Joint) -> bool {
-    joint.friction.is_some_and(|f| f.coefficients.mu_static > 0.0)
+/// The iteration workspace of the Newmark sub-steps, sized once for a model.
+#[derive(Debug, Clone)]
+pub(crate) struct NewmarkSolver {
+    /// Indices of the joints with an equation of motion in this sub-step.
+    free: Vec<usize>,
+    /// Newton matrix of the free joints, row-major, LU-factored in place.
+    iteration_matrix: Vec<f64>,
+    /// Row exchanges of its factorization.
+    pivots: Vec<usize>,
+    /// True while the factored Newton matrix may be reused.
+    newton_valid: bool,
+    /// Sub-step length the Newton matrix was built for, s.
+    newton_h: f64,
+    /// Free joints the Newton matrix was built for.
+    newton_free: Vec<usize>,
+    /// Refined q̈ (see [`NewmarkSolver::refine_acceleration`]) at the start of
+    /// the current sub-step and of the two before it, for the predictor.
+    qdd_history: [Vec<f64>; 3],
+    /// Refined q̈ of the last solved sub-step; enters the history when the
+    /// sub-step is accepted.
+    refined_qdd: Vec<f64>,
+    /// Lengths of the last two accepted sub-steps, s.
+    previous_h: [f64; 2],
+    /// How many of the previous sub-steps belong to the current phases and
+    /// interval (0, 1 or 2).
+    predictor_depth: usize,
+    /// Residuals, then corrections, of the free joints.
+    correction: Vec<f64>,
+    /// Accelerations of the free joints at the last accepted Newton iterate.
+    accepted_qdd: Vec<f64>,
+    /// The Newton step taken from there (halved when it overshoots).
+    newton_step: Vec<f64>,
+    /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
+    iterations: u64,
 }
 
-impl Simulator {
-    /// Solves the state at the current time with the current phases, without
-    /// advancing (a zero-length sub-step): used at initialization, at the start
-    /// of an interval and after a phase change. It also forgets the Newton
-    /// matrix and the predictor history, so that everything after it depends
-    /// only on the state and the inputs (an exact continuation after a state
-    /// is restored).
-    pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
-        self.start.take_step_start(&mut self.state);
-        self.newton_valid = false;
-        self.predictor_depth = 0;
-        self.qdd_history[0].copy_from_slice(&self.start.qdd);
-        self.solve_out_of_line(self.start.time)?;
-        self.qdd_history[0].copy_from_slice(&self.refined_qdd);
-        Ok(())
+/// What a sub-step reads besides the state it solves: the model, the
+/// workspace, the drive inputs and the state at the sub-step's start.
+pub(crate) struct SubStep<'a> {
+    pub model: &'a Model,
+    pub data: &'a mut Data,
+    pub inputs: &'a InputPolynomial,
+    pub start: &'a State,
+}
+
+impl NewmarkSolver {
+    /// A solver for chains of `n` joints.
+    pub fn new(n: usize) -> NewmarkSolver {
+        NewmarkSolver {
+            free: Vec::with_capacity(n),
+            iteration_matrix: vec![0.0; n * n],
+            pivots: vec![0; n],
+            newton_valid: false,
+            newton_h: 0.0,
+            newton_free: Vec::with_capacity(n),
+            qdd_history: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            refined_qdd: vec![0.0; n],
+            previous_h: [0.0; 2],
+            predictor_depth: 0,
+            correction: vec![0.0; n],
+            accepted_qdd: vec![0.0; n],
+            newton_step: vec![0.0; n],
+            iterations: 0,
+        }
     }
 
-    /// Solves the sub-step from `self.start` to time `t` with the phases in
-    /// `self.state`; the result lands in `self.state` (q, q̇, q̈, forces,
-    /// reactions, margins) and in the workspace.
+    /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
+    pub fn iterations(&self) -> u64 {
+        self.iterations
+    }
+
+    /// Starts counting evaluations anew.
+    pub fn reset_count(&mut self) {
+        self.iterations = 0;
+    }
+
+    /// Forgets the Newton matrix and the predictor history, so that what
+    /// follows depends only on the state and the inputs (an exact
+    /// continuation after a state is restored), and predicts from the
+    /// accelerations `qdd` of the state to solve.
+    pub fn restart(&mut self, qdd: &[f64]) {
+        self.newton_valid = false;
+        self.predictor_depth = 0;
+        self.qdd_history[0].copy_from_slice(qdd);
+    }
+
+    /// Makes the last solved sub-step's refined accelerations the newest
+    /// entry of the predictor history (after [`NewmarkSolver::restart`] and a
+    /// zero-length solve: the accelerations to predict from).
+    pub fn seed_history(&mut self) {
+        self.qdd_history[0].copy_from_slice(&self.refined_qdd);
+    }
+
+    /// Books an accepted sub-step of length `dt` for the predictor: the
+    /// history moves back by one and the refined q̈ becomes its newest
+    /// entry (the oldest buffer is reused for the next refined q̈).
+    #[inline(always)]
+    pub fn accepted(&mut self, dt: f64) {
+        self.qdd_history.rotate_right(1);
+        std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
+        self.previous_h = [dt, self.previous_h[0]];
+        self.predictor_depth = (self.predictor_depth + 1).min(2);
+    }
+
+    /// Solves the sub-step from `step.start` to time `t` with the phases in
+    /// `state`; the result lands in `state` (q, q̇, q̈, forces, reactions,
+    /// margins) and in the workspace.
     ///
     /// Newmark: q₁ = q₀ + h·q̇₀ + h²·((½ − β)·q̈₀ + β·q̈₁), q̇₁ = q̇₀ + h·((1 − γ)·q̈₀ + γ·q̈₁).
     /// The unknowns q̈₁ of the slipping joints start from q̈ extrapolated
     /// quadratically from the starts of this and the last two sub-steps (the
     /// first evaluation then mostly meets the tolerance, see
-    /// [`Simulator::refine_acceleration`]) and are corrected with the Newton matrix
+    /// [`NewmarkSolver::refine_acceleration`]) and are corrected with the Newton matrix
     /// (see `factor_newton_matrix`) until the residual of (3.9),
     /// F^d − F^f − (M q̈ + bias), is below the tolerance relative to the
     /// joint's force scale: then accelerations, reactions and friction agree.
@@ -51,12 +143,13 @@ impl Simulator {
     /// slows convergence slightly) and rebuilt when an iteration needs more
     /// than two corrections.
     #[inline(always)]
-    pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
-        let h = t - self.start.time;
-        let settings = self.model.integrator;
+    pub fn solve(&mut self, step: SubStep, state: &mut State, t: f64) -> Result<(), StepError> {
+        let SubStep { model, data, inputs, start } = step;
+        let h = t - start.time;
+        let settings = model.integrator;
         let (beta, gamma) = (settings.beta, settings.gamma);
-        self.state.time = t;
-        self.predict(t, h);
+        state.time = t;
+        self.predict(model, inputs, start, state, t, h);
         let nf = self.free.len();
         // Grid sub-steps differ in length by rounding only.
         let newton_fits = self.newton_valid
@@ -74,22 +167,21 @@ impl Simulator {
         let mut accepted_merit = f64::INFINITY;
         for iteration in 1..=settings.max_iterations {
             // q and q̇ of the free joints follow their q̈ (see `newmark`).
-            self.update_kinematics();
-            rnea(&self.model, &mut self.data, &self.state.qd, &self.state.qdd);
+            rnea(model, data, &state.q, &state.qd, &state.qdd);
             // Friction needs the reactions of the joints with friction; the
             // others are reported at the end of the interval.
-            for (i, joint) in self.model.joints.iter().enumerate() {
+            for (i, joint) in model.joints.iter().enumerate() {
                 if joint.friction.is_some() {
-                    joint_reaction(&self.model, &mut self.data, i);
+                    joint_reaction(model, data, i);
                 }
             }
-            let (residual, merit) = self.joint_forces();
+            let (residual, merit) = self.joint_forces(model, data, state);
             self.iterations += 1;
             if !residual.is_finite() {
                 return Err(StepError::NonFiniteState { time: t });
             }
             if residual <= settings.tolerance {
-                self.refine_acceleration();
+                self.refine_acceleration(state);
                 return Ok(());
             }
             if iteration == settings.max_iterations {
@@ -98,8 +190,8 @@ impl Simulator {
             if iteration > PLAIN_NEWTON_STEPS && merit >= accepted_merit {
                 for (k, &i) in self.free.iter().enumerate() {
                     self.newton_step[k] *= 0.5;
-                    self.state.qdd[i] = self.accepted_qdd[k] + self.newton_step[k];
-                    newmark(&self.start, &mut self.state, i, h, beta, gamma);
+                    state.qdd[i] = self.accepted_qdd[k] + self.newton_step[k];
+                    newmark(start, state, i, h, beta, gamma);
                 }
                 continue;
             }
@@ -107,9 +199,9 @@ impl Simulator {
             if !self.newton_valid || iteration > 2 {
                 // The mass matrix and the friction Jacobian need the frame-0
                 // kinematics, of the coordinates the inverse dynamics used.
-                forward_kinematics(&self.model, &mut self.data, &self.kinematics_q);
-                crba(&self.model, &mut self.data);
-                self.factor_newton_matrix(h, beta, gamma)?;
+                forward_kinematics_at_transforms(model, data);
+                crba(model, data);
+                self.factor_newton_matrix(model, data, state, h, beta, gamma)?;
                 self.newton_valid = true;
                 self.newton_h = h;
                 self.newton_free.clear();
@@ -117,21 +209,13 @@ impl Simulator {
             }
             lu::solve(&self.iteration_matrix, nf, &self.pivots, &mut self.correction[..nf]);
             for (k, &i) in self.free.iter().enumerate() {
-                self.accepted_qdd[k] = self.state.qdd[i];
+                self.accepted_qdd[k] = state.qdd[i];
                 self.newton_step[k] = self.correction[k];
-                self.state.qdd[i] += self.correction[k];
-                newmark(&self.start, &mut self.state, i, h, beta, gamma);
+                state.qdd[i] += self.correction[k];
+                newmark(start, state, i, h, beta, gamma);
             }
         }
         unreachable!("the loop returns on its last iteration")
-    }
-
-    /// [`Simulator::solve`] as a call, for the solves outside the stepping
-    /// loop's common path (evaluations, locating a transition), which need
-    /// not be inlined into it.
-    #[inline(never)]
-    pub(crate) fn solve_out_of_line(&mut self, t: f64) -> Result<(), StepError> {
-        self.solve(t)
     }
 
     /// Sets up the sub-step to time `t` (length `h`): the drive inputs at
@@ -140,8 +224,8 @@ impl Simulator {
     /// the Lagrange extrapolation of the last three refined accelerations,
     /// and the q, q̇ that the Newmark relations give for it.
     #[inline(always)]
-    fn predict(&mut self, t: f64, h: f64) {
-        let n = self.model.nq();
+    fn predict(&mut self, model: &Model, inputs: &InputPolynomial, s: &State, st: &mut State, t: f64, h: f64) {
+        let n = model.nq();
         // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
         let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
         let [w0, w1, w2] = match self.predictor_depth {
@@ -154,16 +238,15 @@ impl Simulator {
             ],
         };
         // Slices of length n let the compiler drop the per-index bounds checks.
-        let (s, st) = (&self.start, &mut self.state);
         let (q, qd, qdd) = (&mut st.q[..n], &mut st.qd[..n], &mut st.qdd[..n]);
         let (q_star, qd_star, phase) = (&mut st.q_star[..n], &mut st.qd_star[..n], &st.phase[..n]);
         let (start_q, start_qd, start_qdd) = (&s.q[..n], &s.qd[..n], &s.qdd[..n]);
-        let (beta, gamma) = (self.model.integrator.beta, self.model.integrator.gamma);
+        let (beta, gamma) = (model.integrator.beta, model.integrator.gamma);
         let [h0, h1, h2] = &self.qdd_history;
         let (h0, h1, h2) = (&h0[..n], &h1[..n], &h2[..n]);
         self.free.clear();
         for i in 0..n {
-            let (qs, qds, qdds) = self.inputs.eval(i, t);
+            let (qs, qds, qdds) = inputs.eval(i, t);
             q_star[i] = qs;
             qd_star[i] = qds;
             match phase[i] {
@@ -197,8 +280,8 @@ impl Simulator {
     /// values the prediction lands just above the tolerance in most
     /// sub-steps, from refined ones mostly below it.
     #[inline(always)]
-    fn refine_acceleration(&mut self) {
-        self.refined_qdd.copy_from_slice(&self.state.qdd);
+    fn refine_acceleration(&mut self, state: &State) {
+        self.refined_qdd.copy_from_slice(&state.qdd);
         let nf = self.free.len();
         if nf == 0 || !self.newton_valid {
             return;
@@ -209,36 +292,17 @@ impl Simulator {
         }
     }
 
-    /// The DH transforms of the current coordinates, skipped when they
-    /// differ from the last ones by rounding only (a Newton correction moves
-    /// q by βh²·Δq̈, often below 1e-15). The first ones of an interval are
-    /// computed by the library's sin_cos, the others expanded about them:
-    /// either way a function of the interval's start and inputs only.
-    #[inline(always)]
-    fn update_kinematics(&mut self) {
-        if !self.kinematics_current {
-            joint_transforms(&self.model, &mut self.data, &self.state.q);
-            self.kinematics_q.copy_from_slice(&self.state.q);
-            self.kinematics_current = true;
-            return;
-        }
-        let moved = self.state.q.iter().zip(&self.kinematics_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
-        if moved {
-            joint_transforms_near_anchors(&self.model, &mut self.data, &self.state.q);
-            self.kinematics_q.copy_from_slice(&self.state.q);
-            self.kinematics_current = true;
-        }
-    }
-
     /// Builds and factors the Newton matrix of the free joints,
     /// M_ff + γh·H_f + βh²·K_f + ∂F^f/∂q̈: the mass matrix of the sub-step
-    /// start, the drive terms through the Newmark relations, and the friction
-    /// Jacobian. Friction depends on q̈ through the reactions, which are linear
-    /// in q̈: joint j's unit acceleration adds the spatial force I^c_max(s,j)·S_j
-    /// to the reaction of joint s. Without this term the iteration only
-    /// contracts slowly on long chains with much friction.
-    fn factor_newton_matrix(&mut self, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
-        let (model, data, st) = (&self.model, &self.data, &self.state);
+    /// start, the drive terms through the Newmark relations
+    /// ([`acceleration_stiffness`]), and the friction Jacobian. Friction
+    /// depends on q̈ through the reactions, which are linear in q̈: joint j's
+    /// unit acceleration adds the spatial force I^c_max(s,j)·S_j to the
+    /// reaction of joint s ([`slip_friction_load_derivative`] along it), and
+    /// through q̇, by γh ([`slip_friction_velocity_slope`]). Without the
+    /// reaction term the iteration only contracts slowly on long chains with
+    /// much friction.
+    fn factor_newton_matrix(&mut self, model: &Model, data: &Data, st: &State, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
         let nf = self.free.len();
         for (a, &s) in self.free.iter().enumerate() {
             for (b, &j) in self.free.iter().enumerate() {
@@ -246,33 +310,24 @@ impl Simulator {
             }
             let joint = &model.joints[s];
             if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
-                if (st.q_star[s] - st.q[s]).abs() >= clearance {
-                    self.iteration_matrix[a * nf + a] += gamma * h * damping + beta * h * h * stiffness;
-                }
+                let drive = drive_force(stiffness, damping, clearance, st.q_star[s], st.qd_star[s], st.q[s], st.qd[s]);
+                self.iteration_matrix[a * nf + a] += acceleration_stiffness(stiffness, damping, drive.engaged, h, beta, gamma);
             }
-            let (Some(friction), Phase::Slipping(d)) = (joint.friction, st.phase[s]) else { continue };
-            let d = d as f64;
-            let c = friction.coefficients;
-            self.iteration_matrix[a * nf + a] += d * st.lever_load[s] * c.kinetic_slope(st.qd[s]) * gamma * h;
-            let mu = c.kinetic(st.qd[s]);
-            if mu == 0.0 {
-                continue;
-            }
+            let (Some(friction), Phase::Slipping(d)) = (joint.friction.as_ref(), st.phase[s]) else { continue };
+            self.iteration_matrix[a * nf + a] +=
+                slip_friction_velocity_slope(friction.coefficients, st.lever_load[s], st.qd[s], d) * gamma * h;
             let (f0, n0) = (data.reaction_force[s], data.reaction_moment[s]);
             let rt = data.joint_rotation[s].transpose();
             let p = reaction_point(model, data, s);
-            let size = f0.norm() + n0.norm();
             for (b, &j) in self.free.iter().enumerate() {
+                // Change of joint s's reaction (joint frame, about its
+                // reaction point) per unit q̈_j.
                 let w = data.composite[s.max(j)] * motion_subspace(model, data, j);
                 let f = rt * w.fixed_rows::<3>(3);
                 let n = rt * (w.fixed_rows::<3>(0) - p.cross(&w.fixed_rows::<3>(3)));
-                let step = 1e-7 * size.max(1e-9) / (f.norm() + n.norm()).max(1e-300);
-                let shifted = contact_load(&friction.geometry, &(f0 + f * step), &(n0 + n * step)).lever_load;
-                self.iteration_matrix[a * nf + b] += d * mu * (shifted - st.lever_load[s]) / step;
+                self.iteration_matrix[a * nf + b] +=
+                    slip_friction_load_derivative(friction, st.lever_load[s], st.qd[s], d, &f0, &n0, &f, &n);
             }
-        }
-        for k in 0..nf {
-            self.newton_diagonal[k] = self.iteration_matrix[k * nf + k];
         }
         if lu::factor(&mut self.iteration_matrix[..nf * nf], nf, &mut self.pivots[..nf]) {
             Ok(())
@@ -287,13 +342,12 @@ impl Simulator {
     /// returns the largest one relative to its joint's force scale, and the
     /// sum of the squares of these relative residuals.
     #[inline(always)]
-    fn joint_forces(&mut self) -> (f64, f64) {
-        let (model, data, st) = (&self.model, &self.data, &mut self.state);
+    fn joint_forces(&mut self, model: &Model, data: &Data, st: &mut State) -> (f64, f64) {
         let n = model.nq();
         // Slices of length n let the compiler drop the per-index bounds checks.
         let (q, qd, q_star, qd_star, phase) = (&st.q[..n], &st.qd[..n], &st.q_star[..n], &st.qd_star[..n], &st.phase[..n]);
         let (normal_load, lever_load) = (&mut st.normal_load[..n], &mut st.lever_load[..n]);
-        let (drive_force, damping_force) = (&mut st.drive_force[..n], &mut st.damping_force[..n]);
+        let (drive_force_out, damping_force) = (&mut st.drive_force[..n], &mut st.damping_force[..n]);
         let (friction_force, margin) = (&mut st.friction_force[..n], &mut st.margin[..n]);
         let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
         let correction = &mut self.correction[..n];
@@ -315,32 +369,31 @@ impl Simulator {
             match joint.drive {
                 Drive::Rigid => {
                     // A rigid drive supplies the generalized force plus the friction it overcomes.
-                    let friction = coefficients.map_or(0.0, |c| c.kinetic(qd[i]) * lever * sign(qd[i]));
+                    let friction = prescribed_friction(coefficients, lever, qd[i]);
                     friction_force[i] = friction;
-                    drive_force[i] = tau + friction;
+                    drive_force_out[i] = tau + friction;
                     damping_force[i] = 0.0;
                     margin[i] = f64::INFINITY;
                 }
                 Drive::Flexible { stiffness, damping, clearance } => {
-                    let fd = drive_force_of(stiffness, damping, clearance, q_star[i], qd_star[i], q[i], qd[i]);
-                    drive_force[i] = fd;
-                    damping_force[i] =
-                        if (q_star[i] - q[i]).abs() < clearance { 0.0 } else { damping * (qd_star[i] - qd[i]) };
-                    let static_limit = coefficients.map_or(0.0, |c| c.mu_static) * lever;
+                    let drive = drive_force(stiffness, damping, clearance, q_star[i], qd_star[i], q[i], qd[i]);
+                    let fd = drive.force;
+                    drive_force_out[i] = fd;
+                    damping_force[i] = drive.damping;
                     match phase[i] {
                         Phase::Stuck => {
-                            // (3.16)–(3.18): F* = τ is the axial reaction with the joint held.
-                            friction_force[i] = fd - tau;
-                            margin[i] = static_limit - (fd - tau).abs();
+                            // (3.17): F* = τ is the axial reaction with the joint held.
+                            let held = stuck_friction(coefficients, lever, fd, tau);
+                            friction_force[i] = held.force;
+                            margin[i] = held.margin;
                         }
                         Phase::Slipping(d) => {
-                            let d = d as f64;
-                            let friction = coefficients.map_or(0.0, |c| c.kinetic(qd[i])) * lever * d;
-                            friction_force[i] = friction;
-                            margin[i] = if holds_statically(joint) { d * qd[i] } else { f64::INFINITY };
+                            let slip = slip_friction(joint.friction.as_ref(), lever, qd[i], d);
+                            friction_force[i] = slip.force;
+                            margin[i] = slip.margin;
                             // (3.9), (3.10): Σ D_si q̈_i + bias = F^d − F^f.
-                            let residual = fd - friction - tau;
-                            let scale = fd.abs() + friction.abs() + tau.abs() + joint_load_scale(data, joint, i);
+                            let residual = fd - slip.force - tau;
+                            let scale = fd.abs() + slip.force.abs() + tau.abs() + joint_load_scale(data, joint, i);
                             let relative = residual / scale.max(f64::MIN_POSITIVE);
                             worst = worst.max(relative.abs());
                             merit += relative * relative;
@@ -373,20 +426,9 @@ fn newmark(start: &State, state: &mut State, i: usize, h: f64, beta: f64, gamma:
 /// Size of the reaction a joint carries, as a floor for relative residuals:
 /// the force for a prismatic joint, the moment for a revolute one.
 #[inline(always)]
-fn joint_load_scale(data: &crate::data::Data, joint: &Joint, i: usize) -> f64 {
+fn joint_load_scale(data: &Data, joint: &Joint, i: usize) -> f64 {
     match joint.kind {
-        crate::model::JointKind::Prismatic => data.force[i].norm(),
-        crate::model::JointKind::Revolute => data.moment[i].norm(),
-    }
-}
-
-#[inline(always)]
-fn sign(x: f64) -> f64 {
-    if x > 0.0 {
-        1.0
-    } else if x < 0.0 {
-        -1.0
-    } else {
-        0.0
+        JointKind::Prismatic => data.force[i].norm(),
+        JointKind::Revolute => data.moment[i].norm(),
     }
 }

@@ -5,11 +5,13 @@ use super::inputs::{DriveInputs, InputPolynomial};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
-use crate::algorithms::kinematics::{end_point, forward_kinematics};
+use super::newmark::{NewmarkSolver, SubStep};
+use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics};
 use crate::algorithms::rnea::joint_reactions;
 use crate::data::Data;
 use crate::error::{ModelError, StepError};
 use crate::forces::drive::spring_energy;
+use crate::forces::friction::holds_statically;
 use crate::model::{Drive, Model, Parameter};
 
 /// A phase change of one joint, for event logs.
@@ -55,42 +57,8 @@ pub struct Simulator {
     /// Snapshot at the start of the current interval, restored on error.
     pub(crate) saved: State,
     pub(crate) inputs: InputPolynomial,
-    /// Indices of the joints with an equation of motion in this sub-step.
-    pub(crate) free: Vec<usize>,
-    /// Newton matrix of the free joints, row-major, LU-factored in place.
-    pub(crate) iteration_matrix: Vec<f64>,
-    /// Row exchanges of its factorization.
-    pub(crate) pivots: Vec<usize>,
-    /// Coordinates of the kinematics in the workspace.
-    pub(crate) kinematics_q: Vec<f64>,
-    /// False when the workspace kinematics belong to other coordinates.
-    pub(crate) kinematics_current: bool,
-    /// True while the factored Newton matrix may be reused.
-    pub(crate) newton_valid: bool,
-    /// Sub-step length the Newton matrix was built for, s.
-    pub(crate) newton_h: f64,
-    /// Free joints the Newton matrix was built for.
-    pub(crate) newton_free: Vec<usize>,
-    /// Refined q̈ (see [`Simulator::refine_acceleration`]) at the start of
-    /// the current sub-step and of the two before it, for the predictor.
-    pub(crate) qdd_history: [Vec<f64>; 3],
-    /// Refined q̈ of the last solved sub-step; enters the history when the
-    /// sub-step is accepted.
-    pub(crate) refined_qdd: Vec<f64>,
-    /// Lengths of the last two accepted sub-steps, s.
-    pub(crate) previous_h: [f64; 2],
-    /// How many of the previous sub-steps belong to the current phases and
-    /// interval (0, 1 or 2).
-    pub(crate) predictor_depth: usize,
-    /// Its diagonal before factorization: the effective inertia of each free
-    /// joint, inertia plus the growth of its friction with its acceleration.
-    pub(crate) newton_diagonal: Vec<f64>,
-    /// Residuals, then corrections, of the free joints.
-    pub(crate) correction: Vec<f64>,
-    /// Accelerations of the free joints at the last accepted Newton iterate.
-    pub(crate) accepted_qdd: Vec<f64>,
-    /// The Newton step taken from there (halved when it overshoots).
-    pub(crate) newton_step: Vec<f64>,
+    /// The Newmark iteration's workspace.
+    pub(crate) solver: NewmarkSolver,
     /// Scratch joint vector.
     pub(crate) scratch: Vec<f64>,
     /// For each joint, the instant (see `instant`) at which its phase was
@@ -101,8 +69,6 @@ pub struct Simulator {
     pub(crate) instant: u64,
     pub(crate) transitions: Vec<Transition>,
     pub(crate) transitions_dropped: usize,
-    /// Newmark iterations of the last interval, for diagnostics.
-    pub(crate) iterations: u64,
     pub(crate) initialized: bool,
     /// The variant of the stepping loop that runs (see [`InstructionSet`]).
     pub(crate) instruction_set: InstructionSet,
@@ -120,28 +86,12 @@ impl Simulator {
             saved: state.clone(),
             state,
             inputs: InputPolynomial::new(n),
-            free: Vec::with_capacity(n),
-            iteration_matrix: vec![0.0; n * n],
-            pivots: vec![0; n],
-            kinematics_q: vec![0.0; n],
-            kinematics_current: false,
-            newton_valid: false,
-            newton_h: 0.0,
-            newton_free: Vec::with_capacity(n),
-            qdd_history: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-            refined_qdd: vec![0.0; n],
-            previous_h: [0.0; 2],
-            predictor_depth: 0,
-            newton_diagonal: vec![0.0; n],
-            correction: vec![0.0; n],
-            accepted_qdd: vec![0.0; n],
-            newton_step: vec![0.0; n],
+            solver: NewmarkSolver::new(n),
             scratch: vec![0.0; n],
             decided: vec![0; n],
             instant: 1,
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
             transitions_dropped: 0,
-            iterations: 0,
             initialized: false,
             instruction_set: InstructionSet::best_available(),
             model_checked: true,
@@ -183,7 +133,7 @@ impl Simulator {
 
     /// Newmark iterations spent in the last interval.
     pub fn iterations(&self) -> u64 {
-        self.iterations
+        self.solver.iterations()
     }
 
     /// Restores a state taken from [`Simulator::state`] of a simulator of the
@@ -193,7 +143,7 @@ impl Simulator {
             return Err(ModelError::Invalid { field: "state".into(), reason: "does not fit this model".into() });
         }
         self.state.copy_from(state);
-        self.kinematics_current = false;
+        forget_joint_transforms(&mut self.data);
         self.initialized = true;
         Ok(())
     }
@@ -286,7 +236,7 @@ impl Simulator {
                     st.qd[i] = qd;
                     st.phase[i] = if qd != 0.0 {
                         Phase::Slipping(if qd > 0.0 { 1 } else { -1 })
-                    } else if super::newmark::holds_statically(joint) {
+                    } else if holds_statically(joint.friction.as_ref()) {
                         Phase::Stuck
                     } else {
                         Phase::Slipping(1)
@@ -323,7 +273,7 @@ impl Simulator {
         }
         self.check_model()?;
         self.saved.copy_from(&self.state);
-        self.iterations = 0;
+        self.solver.reset_count();
         let result = self.advance_inner(inputs, interval);
         if result.is_err() {
             self.state.copy_from(&self.saved);
@@ -393,6 +343,35 @@ impl Simulator {
         Ok(())
     }
 
+    /// Solves the state at the current time with the current phases, without
+    /// advancing (a zero-length sub-step): used at initialization, at the start
+    /// of an interval and after a phase change. The solver starts afresh, so
+    /// that everything after it depends only on the state and the inputs (an
+    /// exact continuation after a state is restored).
+    pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
+        self.start.take_step_start(&mut self.state);
+        self.solver.restart(&self.start.qdd);
+        self.solve_out_of_line(self.start.time)?;
+        self.solver.seed_history();
+        Ok(())
+    }
+
+    /// Solves the sub-step from `self.start` to time `t` with the phases in
+    /// `self.state` (see [`NewmarkSolver::solve`]).
+    #[inline(always)]
+    pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
+        let step = SubStep { model: &self.model, data: &mut self.data, inputs: &self.inputs, start: &self.start };
+        self.solver.solve(step, &mut self.state, t)
+    }
+
+    /// [`Simulator::solve`] as a call, for the solves outside the stepping
+    /// loop's common path (evaluations, locating a transition), which need
+    /// not be inlined into it.
+    #[inline(never)]
+    pub(crate) fn solve_out_of_line(&mut self, t: f64) -> Result<(), StepError> {
+        self.solve(t)
+    }
+
     /// Recomputes the reported quantities that are not needed while stepping:
     /// energies, all joint reactions and end points.
     pub(crate) fn update_reported(&mut self) {
@@ -406,7 +385,8 @@ impl Simulator {
         // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
         self.scratch.copy_from_slice(&st.q_star);
         forward_kinematics(model, &mut self.data, &self.scratch);
-        self.kinematics_current = false;
+        // The next interval starts from the library's sines of its own q.
+        forget_joint_transforms(&mut self.data);
         st.end_point_rigid = end_point(model, &self.data);
     }
 
@@ -415,8 +395,6 @@ impl Simulator {
     fn update_energies(&mut self) {
         let (model, st) = (&self.model, &mut self.state);
         forward_kinematics(model, &mut self.data, &st.q);
-        self.kinematics_q.copy_from_slice(&st.q);
-        self.kinematics_current = true;
         st.energy.kinetic = kinetic_energy(model, &self.data, &st.qd);
         st.energy.potential = potential_energy(model, &self.data);
         st.energy.spring = model

@@ -130,12 +130,7 @@ impl Simulator {
             return Err(StepError::NonFiniteState { time: st.time });
         }
         // The end of this sub-step is the start of the next one.
-        // The history moves back by one; the refined q̈ becomes its newest
-        // entry, and the oldest buffer is reused for the next refined q̈.
-        self.qdd_history.rotate_right(1);
-        std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
-        self.previous_h = [dt, self.previous_h[0]];
-        self.predictor_depth = (self.predictor_depth + 1).min(2);
+        self.solver.accepted(dt);
         let e = &mut st.energy;
         e.drive_work += 0.5 * drive_work;
         e.friction_heat += 0.5 * friction_heat;
