@@ -36,6 +36,9 @@ pub struct DhRotation {
     pub cos_alpha: f64,
 }
 
+// `to_*` read as "into frame …": the receiver is small and taken by reference
+// like the vector.
+#[allow(clippy::wrong_self_convention)]
 impl DhRotation {
     /// R_i for the angles θ, α.
     pub fn new(theta: f64, alpha: f64) -> DhRotation {

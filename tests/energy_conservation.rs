@@ -14,11 +14,12 @@ use stick_slip_manipulator::{DriveInputs, InitialState, Model, Simulator};
 
 #[test]
 fn total_energy_is_conserved_without_friction_and_damping() {
-    let mut sim = Simulator::new(Model::reference_rrpr()).unwrap();
+    let mut model = Model::reference_rrpr();
     for joint in [0, 2] {
-        sim.set_parameter(Parameter::MuKinetic, joint, 0.0).unwrap();
-        sim.set_parameter(Parameter::MuStatic, joint, 0.0).unwrap();
+        model.set_parameter(Parameter::MuKinetic, joint, 0.0).unwrap();
+        model.set_parameter(Parameter::MuStatic, joint, 0.0).unwrap();
     }
+    let mut sim = Simulator::new(model).unwrap();
     let q_star = [0.2, 0.3, 0.9, 0.4];
     let zero = [0.0; 4];
     let inputs = DriveInputs { q_star: &q_star, qd_star: &zero, qdd_star: &zero };
@@ -44,9 +45,10 @@ fn total_energy_is_conserved_without_friction_and_damping() {
 
 #[test]
 fn energy_account_closes_with_friction_and_damping() {
-    let mut sim = Simulator::new(Model::reference_rrpr()).unwrap();
-    sim.set_parameter(Parameter::Damping, 0, 1e3).unwrap();
-    sim.set_parameter(Parameter::Damping, 2, 1e3).unwrap();
+    let mut model = Model::reference_rrpr();
+    model.set_parameter(Parameter::Damping, 0, 1e3).unwrap();
+    model.set_parameter(Parameter::Damping, 2, 1e3).unwrap();
+    let mut sim = Simulator::new(model).unwrap();
     let inputs_at = reference_inputs;
     let (a, b, c) = inputs_at(0.0);
     sim.initialize(0.0, &DriveInputs { q_star: &a, qd_star: &b, qdd_star: &c }, None).unwrap();

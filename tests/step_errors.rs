@@ -59,13 +59,24 @@ fn stepping_before_initialization_is_an_error() {
 fn inconsistent_parameters_surface_at_the_next_step() {
     let mut sim = running_reference();
     let before = sim.state().clone();
-    sim.set_parameter(Parameter::MuKinetic, 2, 0.5).unwrap();
+    let mut model = sim.model().clone();
+    model.set_parameter(Parameter::MuKinetic, 2, 0.5).unwrap();
+    sim.set_model(model.clone()).unwrap();
     let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
     assert!(matches!(e, StepError::InvalidModel { .. }), "{e}");
     assert!(e.to_string().contains("joint[3].friction.mu_s"), "{e}");
     assert_eq!(sim.state(), &before);
-    sim.set_parameter(Parameter::MuStatic, 2, 0.5).unwrap();
+    model.set_parameter(Parameter::MuStatic, 2, 0.5).unwrap();
+    sim.set_model(model).unwrap();
     sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap();
+}
+
+#[test]
+fn a_model_of_another_chain_is_refused() {
+    let mut sim = running_reference();
+    let e = sim.set_model(Model::synthetic_chain(4)).unwrap_err();
+    assert!(e.to_string().contains("another chain"), "{e}");
+    assert_eq!(sim.model(), &Model::reference_rrpr());
 }
 
 #[test]

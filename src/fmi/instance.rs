@@ -29,8 +29,7 @@ pub(crate) struct Instance {
     guid: String,
     /// The model as read from `resources/model.toml` (what fmi2Reset returns to).
     base: Model,
-    /// The model with the parameter values the master set.
-    model: Model,
+    /// The engine; its model carries the parameter values the master set.
     sim: Simulator,
     lifecycle: LifeCycle,
     start_time: f64,
@@ -116,8 +115,7 @@ impl Instance {
             guid: description::guid(model_text, &variables),
             variables,
             sim: Simulator::new(model.clone()).map_err(|e| e.to_string())?,
-            base: model.clone(),
-            model,
+            base: model,
             lifecycle: LifeCycle::Instantiated,
             start_time: 0.0,
             stop_time: None,
@@ -182,7 +180,6 @@ impl Instance {
     pub(crate) fn reset(&mut self) -> Outcome {
         let n = self.base.nq();
         self.sim = Simulator::new(self.base.clone()).map_err(|e| Fault::error(e.to_string()))?;
-        self.model = self.base.clone();
         self.lifecycle = LifeCycle::Instantiated;
         self.start_time = 0.0;
         self.stop_time = None;
@@ -250,7 +247,7 @@ impl Instance {
             return Ok(());
         }
         let mut sim =
-            Simulator::new(self.model.clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
+            Simulator::new(self.sim.model().clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
         let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
         sim.initialize(self.start_time, &drive_inputs(&self.inputs), initial)
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
@@ -273,8 +270,8 @@ impl Instance {
             Quantity::Input(field, j) => Value::Real(self.inputs[input_index(field)][j]),
             Quantity::Output(o) => output_value(self.sim.state(), o),
             // The layout lists only the parameters a joint has.
-            Quantity::Parameter(p, j) => Value::Real(self.model.parameter(p, j).unwrap_or(f64::NAN)),
-            Quantity::Setting(s) => Value::Real(s.get(&self.model.integrator)),
+            Quantity::Parameter(p, j) => Value::Real(self.sim.model().parameter(p, j).unwrap_or(f64::NAN)),
+            Quantity::Setting(s) => Value::Real(s.get(&self.sim.model().integrator)),
             Quantity::UseStartValues => Value::Boolean(self.use_start_values),
             Quantity::StartQ(j) => Value::Real(self.q_start[j]),
             Quantity::StartQd(j) => Value::Real(self.qd_start[j]),
@@ -338,7 +335,9 @@ impl Instance {
     }
 
     /// fmi2SetReal: every value is checked before any is stored, so a
-    /// rejected call changes nothing.
+    /// rejected call changes nothing. Parameters and settings go into a new
+    /// model that the engine runs with from its next step (the model in use
+    /// is never changed in place).
     pub(crate) fn set_real(&mut self, vrs: &[fmi2ValueReference], values: &[f64]) -> Outcome {
         let mut trial: Option<Model> = None;
         for (vr, x) in vrs.iter().zip(values) {
@@ -352,15 +351,27 @@ impl Instance {
             self.check_settable(v)?;
             match v.quantity {
                 Quantity::Parameter(p, j) => trial
-                    .get_or_insert_with(|| self.model.clone())
+                    .get_or_insert_with(|| self.sim.model().clone())
                     .set_parameter(p, j, *x)
                     .map_err(|e| Fault::error(e.to_string()))?,
-                Quantity::Setting(s) => s.check(*x).map_err(Fault::error)?,
+                Quantity::Setting(s) => {
+                    s.check(*x).map_err(Fault::error)?;
+                    s.set(&mut trial.get_or_insert_with(|| self.sim.model().clone()).integrator, *x);
+                }
                 _ => {}
             }
         }
         for (vr, x) in vrs.iter().zip(values) {
-            self.store(self.variables[*vr as usize].quantity, Value::Real(*x))?;
+            let q = self.variables[*vr as usize].quantity;
+            if !matches!(q, Quantity::Parameter(..) | Quantity::Setting(_)) {
+                self.store(q, Value::Real(*x))?;
+            }
+        }
+        if let Some(model) = trial {
+            self.sim.set_model(model).map_err(|e| Fault::error(e.to_string()))?;
+            if self.lifecycle.is_configuring() {
+                self.stale = true;
+            }
         }
         Ok(Status::Ok)
     }
@@ -380,18 +391,11 @@ impl Instance {
         Ok(Status::Ok)
     }
 
-    /// Stores a checked value.
+    /// Stores a checked value of an input or a start value (parameters go
+    /// into the engine's model, see [`Instance::set_real`]).
     fn store(&mut self, q: Quantity, value: Value) -> Result<(), Fault> {
-        let invalid = |e: crate::error::ModelError| Fault::error(e.to_string());
         match (q, value) {
             (Quantity::Input(field, j), Value::Real(x)) => self.inputs[input_index(field)][j] = x,
-            (Quantity::Parameter(p, j), Value::Real(x)) => {
-                self.model.set_parameter(p, j, x).map_err(invalid)?;
-                if !self.lifecycle.is_configuring() {
-                    self.sim.set_parameter(p, j, x).map_err(invalid)?;
-                }
-            }
-            (Quantity::Setting(s), Value::Real(x)) => s.set(&mut self.model.integrator, x),
             (Quantity::StartQ(j), Value::Real(x)) => self.q_start[j] = x,
             (Quantity::StartQd(j), Value::Real(x)) => self.qd_start[j] = x,
             (Quantity::UseStartValues, Value::Boolean(b)) => self.use_start_values = b,
@@ -600,13 +604,12 @@ impl Instance {
         let mut sim = Simulator::new(model.clone()).map_err(|e| rejected(e.to_string()))?;
         for (p, j, x) in tunables {
             model.set_parameter(p, j, x).map_err(|e| rejected(e.to_string()))?;
-            sim.set_parameter(p, j, x).map_err(|e| rejected(e.to_string()))?;
         }
+        sim.set_model(model).map_err(|e| rejected(e.to_string()))?;
         if s.lifecycle.is_running() {
             sim.set_state(&s.state).map_err(|e| rejected(e.to_string()))?;
         }
         let Snapshot { lifecycle, start_time, stop_time, inputs, use_start_values, q_start, qd_start, .. } = s;
-        self.model = model;
         self.sim = sim;
         self.lifecycle = lifecycle;
         self.start_time = start_time;

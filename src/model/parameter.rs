@@ -97,6 +97,25 @@ impl Model {
         slot(self.joints.get_mut(joint)?, self.links.get_mut(joint)?, p)
     }
 
+    /// True if `other` is the same chain as this model up to the values of
+    /// its tunable parameters and integrator settings: everything else (DH
+    /// rows, drive and contact kinds, inertias, gravity, end point) equal.
+    pub fn has_layout_of(&self, other: &Model) -> bool {
+        if self.nq() != other.nq() {
+            return false;
+        }
+        let mut probe = other.clone();
+        for joint in 0..self.nq() {
+            for p in Parameter::ALL {
+                if let (Some(slot), Some(value)) = (probe.parameter_slot(p, joint), self.parameter(p, joint)) {
+                    *slot = value;
+                }
+            }
+        }
+        probe.integrator = self.integrator;
+        probe == *self
+    }
+
     /// True if joint `joint` (0-based) has parameter `p`.
     pub fn has_parameter(&self, p: Parameter, joint: usize) -> bool {
         self.parameter(p, joint).is_some()

@@ -12,7 +12,7 @@ use crate::data::Data;
 use crate::error::{ModelError, StepError};
 use crate::forces::drive::spring_energy;
 use crate::forces::friction::holds_statically;
-use crate::model::{Drive, Model, Parameter};
+use crate::model::{Drive, Model};
 
 /// A phase change of one joint, for event logs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,10 +148,20 @@ impl Simulator {
         Ok(())
     }
 
-    /// Sets a tunable parameter (0-based joint). Relations between parameters
-    /// are checked before the next interval.
-    pub fn set_parameter(&mut self, p: Parameter, joint: usize, value: f64) -> Result<(), ModelError> {
-        self.model.set_parameter(p, joint, value)?;
+    /// Runs with `model` from the next interval on: the same chain with other
+    /// parameter values (a new [`Model`], e.g. from [`Model::set_parameter`]
+    /// on a copy of [`Simulator::model`]); the model in use is never changed
+    /// in place. A model of another structure is refused at once; relations
+    /// between parameters (μ_s ≥ μ_k, …) are checked before the next interval,
+    /// since a caller may change them one at a time.
+    pub fn set_model(&mut self, model: Model) -> Result<(), ModelError> {
+        if !model.has_layout_of(&self.model) {
+            return Err(ModelError::Invalid {
+                field: "model".into(),
+                reason: "another chain: joints, drives and contacts must stay those of the running model".into(),
+            });
+        }
+        self.model = model;
         self.model_checked = false;
         Ok(())
     }
@@ -219,6 +229,7 @@ impl Simulator {
 
     fn initialize_inner(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
         self.inputs.set(t0, inputs);
+        forget_joint_transforms(&mut self.data);
         let st = &mut self.state;
         st.time = t0;
         st.energy = Default::default();
