@@ -211,3 +211,16 @@ fn reference_manipulator_geometry_matches_its_description() {
     let m: MatN = lagrange::lagrange_terms(&model, &[0.0, 0.0, 0.8, 0.0], &[0.0; 4]).mass;
     assert!(m[(2, 2)] - 12.0 < 1e-12 && m[(2, 2)] > 11.999, "joint 3 moves links 3 and 4: 8 + 4 kg, got {}", m[(2, 2)]);
 }
+
+/// `rnea` reads the joint transforms of its `q`: called with other
+/// coordinates than those in the workspace, a debug build stops.
+#[test]
+#[cfg(debug_assertions)]
+#[should_panic(expected = "not those of `q`")]
+fn rnea_refuses_transforms_of_other_coordinates() {
+    let model = Model::reference_rrpr();
+    let mut data = Data::new(&model);
+    let q = [0.1, 0.2, 0.9, 0.3];
+    forward_kinematics(&model, &mut data, &q);
+    rnea(&model, &mut data, &[0.2, 0.2, 0.9, 0.3], &[0.0; 4], &[0.0; 4]);
+}

@@ -4,7 +4,7 @@
 //! only the DH transforms A_i of [`joint_transforms`](super::kinematics::joint_transforms)
 //! (a rotation by θ_i about z and one by α_i about x) and no frame-0 kinematics.
 
-use super::kinematics::{reaction_offset, update_joint_transforms};
+use super::kinematics::reaction_offset;
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
@@ -12,8 +12,12 @@ use crate::model::{JointKind, Model};
 /// Inverse dynamics at joint coordinates `q`, velocities `qd` and
 /// accelerations `qdd` (each of length n); gravity is the model's.
 ///
-/// Reads the joint transforms in `data`, brought to `q` first by
-/// [`update_joint_transforms`] (not recomputed when they are current for `q`).
+/// Reads the joint transforms of `q` in `data`: the caller brings them to `q`
+/// with [`update_joint_transforms`](super::kinematics::update_joint_transforms)
+/// (or [`joint_transforms`](super::kinematics::joint_transforms),
+/// [`forward_kinematics`](super::kinematics::forward_kinematics)); a stepper
+/// that iterates q̈ at fixed q does so once for several calls. Debug builds
+/// check that they belong to `q`.
 /// Results: `data.tau` (τ = M q̈ + bias, length n), the joint forces
 /// `data.force[i]` and moments `data.moment[i]` (about the origin of frame
 /// i−1) exerted by link i−1 on link i, resolved in frame i, and the link
@@ -24,7 +28,12 @@ use crate::model::{JointKind, Model};
 /// the backward loop the joint forces from joint n to 1.
 #[inline(always)]
 pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) {
-    update_joint_transforms(model, data, q);
+    // A check in every build costs 5 % of a sub-step: the hot path keeps it
+    // to debug builds (`cargo test` without --release runs it).
+    debug_assert!(
+        data.transforms_current && data.transforms_q.iter().zip(q).all(|(a, b)| (a - b).abs() <= 1e-15 * (1.0 + b.abs())),
+        "rnea: the joint transforms in `data` are not those of `q` (call update_joint_transforms first)"
+    );
     let n = model.nq();
     // One check up front lets the compiler drop the per-index bounds checks.
     assert!(

@@ -10,7 +10,7 @@
 use super::inputs::InputPolynomial;
 use super::state::{Phase, State};
 use crate::algorithms::crba::{crba, motion_subspace};
-use crate::algorithms::kinematics::{forward_kinematics_at_transforms, reaction_point};
+use crate::algorithms::kinematics::{forward_kinematics_at_transforms, reaction_point, update_joint_transforms};
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::data::Data;
@@ -167,6 +167,8 @@ impl NewmarkSolver {
         let mut accepted_merit = f64::INFINITY;
         for iteration in 1..=settings.max_iterations {
             // q and q̇ of the free joints follow their q̈ (see `newmark`).
+            // The DH transforms follow q (skipped when only rounding moved it).
+            update_joint_transforms(model, data, &state.q);
             rnea(model, data, &state.q, &state.qd, &state.qdd);
             // Friction needs the reactions of the joints with friction; the
             // others are reported at the end of the interval.
