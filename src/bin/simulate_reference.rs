@@ -2,7 +2,10 @@
 //! manipulator) with the Rust engine and writes a CSV with the FMU's
 //! variable names.
 //!
-//! Usage: simulate_reference [--model FILE] [--out FILE] [--interval S] [--h-max S] [--end S]
+//! Usage: simulate_reference [--model FILE] [--out FILE] [--interval S] [--end S]
+//!                           [--h-min S] [--h-max S] [--tol TOL]
+//!
+//! `--h-max` below the model's h_min gives fixed sub-steps of that length.
 
 use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
@@ -21,6 +24,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut interval = 1e-3;
     let mut end = REFERENCE_RUN_TIME;
     let mut h_max = None;
+    let mut h_min = None;
+    let mut error_tolerance = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or_else(|| format!("{a} needs a value"));
@@ -30,6 +35,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--interval" => interval = value()?.parse()?,
             "--end" => end = value()?.parse()?,
             "--h-max" => h_max = Some(value()?.parse::<f64>()?),
+            "--h-min" => h_min = Some(value()?.parse::<f64>()?),
+            "--tol" => error_tolerance = Some(value()?.parse::<f64>()?),
             _ => return Err(format!("unknown argument {a}").into()),
         }
     }
@@ -37,8 +44,16 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Some(p) => Model::from_file(p)?,
         None => Model::reference_rrpr(),
     };
+    // --h-max alone below the model's h_min means fixed sub-steps of that length.
     if let Some(h) = h_max {
         model.integrator.h_max = h;
+        model.integrator.h_min = model.integrator.h_min.min(h);
+    }
+    if let Some(h) = h_min {
+        model.integrator.h_min = h;
+    }
+    if let Some(t) = error_tolerance {
+        model.integrator.error_tolerance = t;
     }
     let n = model.nq();
     if n != 4 {
@@ -56,18 +71,23 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let steps = (end / interval).round() as usize;
     let wall = std::time::Instant::now();
     let mut stepping = std::time::Duration::ZERO;
+    let mut evaluations = 0;
     for k in 0..steps {
         let t = k as f64 * interval;
         let (q, qd, qdd) = reference_inputs(t);
         let started = std::time::Instant::now();
         sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, interval)?;
         stepping += started.elapsed();
+        evaluations += sim.iterations();
         write_row(&mut file, &sim)?;
     }
+    let st = sim.state().steps;
     eprintln!(
-        "simulated {end} s in {:.2} s wall stepping ({:.2} s with writing the results); results in {out}",
+        "simulated {end} s in {:.3} s wall stepping ({:.3} s with writing the results); {} sub-steps, {} rejected, {evaluations} inverse-dynamics evaluations; results in {out}",
         stepping.as_secs_f64(),
-        wall.elapsed().as_secs_f64()
+        wall.elapsed().as_secs_f64(),
+        st.accepted,
+        st.rejected,
     );
     Ok(())
 }

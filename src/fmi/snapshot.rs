@@ -20,10 +20,10 @@
 use super::description::fnv1a_64;
 use super::lifecycle::LifeCycle;
 use crate::math::Vec3;
-use crate::stepper::{Energy, Phase, State};
+use crate::stepper::{Energy, Phase, State, StepStatistics};
 
 const MAGIC: [u8; 8] = *b"SSMFMUst";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 const HEADER: usize = 36;
 const CHECKSUM: usize = 8;
 
@@ -159,6 +159,7 @@ fn put_state(w: &mut Writer, s: &State) {
         normal_load,
         lever_load,
         margin,
+        clearance_margin,
         reaction_force,
         reaction_moment,
         stick_count,
@@ -166,7 +167,9 @@ fn put_state(w: &mut Writer, s: &State) {
         energy,
         end_point,
         end_point_rigid,
+        steps,
     } = s;
+    let StepStatistics { accepted, rejected, last_h, next_h } = steps;
     let Energy { kinetic, potential, spring, drive_work, friction_heat, damping_heat } = energy;
     w.f64(*time);
     for v in [q, qd, qdd] {
@@ -181,7 +184,7 @@ fn put_state(w: &mut Writer, s: &State) {
         w.u8(tag);
         w.0.extend_from_slice(&direction.to_le_bytes());
     }
-    for v in [q_star, qd_star, drive_force, damping_force, friction_force, normal_load, lever_load, margin] {
+    for v in [q_star, qd_star, drive_force, damping_force, friction_force, normal_load, lever_load, margin, clearance_margin] {
         w.f64s(v);
     }
     for v in [reaction_force, reaction_moment] {
@@ -192,6 +195,9 @@ fn put_state(w: &mut Writer, s: &State) {
     w.f64s(&[*kinetic, *potential, *spring, *drive_work, *friction_heat, *damping_heat]);
     w.f64s(end_point.as_slice());
     w.f64s(end_point_rigid.as_slice());
+    w.u64(*accepted);
+    w.u64(*rejected);
+    w.f64s(&[*last_h, *next_h]);
 }
 
 fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
@@ -212,6 +218,7 @@ fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
         normal_load: r.f64s(n)?,
         lever_load: r.f64s(n)?,
         margin: r.f64s(n)?,
+        clearance_margin: r.f64s(n)?,
         reaction_force: r.vec3s(n)?,
         reaction_moment: r.vec3s(n)?,
         stick_count: (0..n).map(|_| r.u64()).collect::<Result<_, _>>()?,
@@ -226,6 +233,7 @@ fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
         },
         end_point: r.vec3()?,
         end_point_rigid: r.vec3()?,
+        steps: StepStatistics { accepted: r.u64()?, rejected: r.u64()?, last_h: r.f64()?, next_h: r.f64()? },
     })
 }
 
@@ -421,11 +429,11 @@ mod tests {
 
         // A newer format version, with a valid checksum.
         let mut newer = bytes.clone();
-        newer[8..12].copy_from_slice(&2u32.to_le_bytes());
+        newer[8..12].copy_from_slice(&(VERSION + 1).to_le_bytes());
         let body = newer.len() - 8;
         let checksum = fnv1a_64(&newer[..body]);
         newer[body..].copy_from_slice(&checksum.to_le_bytes());
-        assert!(decode(&newer, HASH, 4, 7).unwrap_err().contains("version 2"));
+        assert!(decode(&newer, HASH, 4, 7).unwrap_err().contains(&format!("version {}", VERSION + 1)));
     }
 
     #[test]

@@ -26,7 +26,9 @@ struct ModelFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct IntegratorFile {
+    h_min: Option<f64>,
     h_max: Option<f64>,
+    error_tolerance: Option<f64>,
     beta: Option<f64>,
     gamma: Option<f64>,
     tolerance: Option<f64>,
@@ -138,7 +140,9 @@ impl Model {
         let integrator = match file.integrator {
             None => defaults,
             Some(s) => IntegratorSettings {
+                h_min: s.h_min.unwrap_or(defaults.h_min),
                 h_max: s.h_max.unwrap_or(defaults.h_max),
+                error_tolerance: s.error_tolerance.unwrap_or(defaults.error_tolerance),
                 beta: s.beta.unwrap_or(defaults.beta),
                 gamma: s.gamma.unwrap_or(defaults.gamma),
                 tolerance: s.tolerance.unwrap_or(defaults.tolerance),

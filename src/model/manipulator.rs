@@ -11,9 +11,16 @@ pub const MAX_JOINTS: usize = 64;
 /// Settings of the iterative Newmark stepper (study section 3.2, after eq. 3.15).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IntegratorSettings {
-    /// Largest internal sub-step h_max, s. Default 2·10⁻⁶ s, the step the
-    /// study found converged.
+    /// Smallest internal sub-step h_min, s: the error control never goes
+    /// below it. Default 2·10⁻⁶ s, the step the study found converged.
+    pub h_min: f64,
+    /// Largest internal sub-step h_max, s. Default 1·10⁻⁴ s; h_min = h_max
+    /// gives fixed sub-steps of that length (shortened only at events).
     pub h_max: f64,
+    /// Relative tolerance of the local error of a sub-step (see
+    /// `stepper::error_control`), default 1e-4; what fmi2SetupExperiment's
+    /// tolerance sets.
+    pub error_tolerance: f64,
     /// Newmark β, default ¼ (average acceleration).
     pub beta: f64,
     /// Newmark γ, default ½.
@@ -32,11 +39,30 @@ impl IntegratorSettings {
     pub const GAMMA_RANGE: (f64, f64) = (0.5, 1.0);
     /// Largest admissible iteration tolerance; it must be positive.
     pub const TOLERANCE_MAX: f64 = 1e-3;
+    /// Admissible range of the sub-step bounds h_min ≤ h_max, s (both ends
+    /// included): below 1e-9 s rounding of the time eats the step, above
+    /// 1e-2 s a sub-step spans a drive's vibration period.
+    pub const STEP_RANGE: (f64, f64) = (1e-9, 1e-2);
+    /// Admissible range of the error tolerance (the lower end excluded).
+    pub const ERROR_TOLERANCE_RANGE: (f64, f64) = (0.0, 0.1);
+
+    /// True when h_min = h_max: fixed sub-steps, no error control.
+    pub fn fixed_step(&self) -> bool {
+        self.h_min >= self.h_max
+    }
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings { h_max: 2e-6, beta: 0.25, gamma: 0.5, tolerance: 1e-10, max_iterations: 50 }
+        IntegratorSettings {
+            h_min: 2e-6,
+            h_max: 1e-4,
+            error_tolerance: 1e-4,
+            beta: 0.25,
+            gamma: 0.5,
+            tolerance: 1e-10,
+            max_iterations: 50,
+        }
     }
 }
 
@@ -235,7 +261,19 @@ fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
 }
 
 fn validate_integrator(s: &IntegratorSettings) -> Result<(), ModelError> {
-    check_value("integrator.h_max", s.h_max, Range::Positive)?;
+    let (h0, h1) = IntegratorSettings::STEP_RANGE;
+    for (field, h) in [("integrator.h_min", s.h_min), ("integrator.h_max", s.h_max)] {
+        if !(h0..=h1).contains(&h) {
+            return Err(invalid(field, h, format!("must lie in [{h0:e}, {h1:e}] s")));
+        }
+    }
+    if s.h_min > s.h_max {
+        return Err(invalid("integrator.h_min", s.h_min, format!("must not exceed h_max = {:e} s", s.h_max)));
+    }
+    let (e0, e1) = IntegratorSettings::ERROR_TOLERANCE_RANGE;
+    if !(s.error_tolerance > e0 && s.error_tolerance <= e1) {
+        return Err(invalid("integrator.error_tolerance", s.error_tolerance, format!("must lie in ({e0}, {e1}]")));
+    }
     let (b0, b1) = IntegratorSettings::BETA_RANGE;
     if !(b0..=b1).contains(&s.beta) {
         return Err(invalid("integrator.beta", s.beta, format!("Newmark beta must lie in [{b0}, {b1}]")));

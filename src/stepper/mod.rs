@@ -1,6 +1,7 @@
 //! The iterative Newmark stepper with stick–slip switching.
 
 mod inputs;
+mod error_control;
 mod isa;
 mod newmark;
 mod simulator;
@@ -10,4 +11,4 @@ mod switching;
 pub use inputs::{DriveInputs, InputPolynomial};
 pub use isa::InstructionSet;
 pub use simulator::{InitialState, Simulator, Transition, TRANSITION_LOG_CAPACITY};
-pub use state::{Energy, Phase, State};
+pub use state::{Energy, Phase, State, StepStatistics};

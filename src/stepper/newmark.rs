@@ -15,12 +15,16 @@ use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::data::Data;
 use crate::error::StepError;
-use crate::forces::drive::{acceleration_stiffness, drive_force};
+use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force};
 use crate::forces::friction::{
     contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
     stuck_friction,
 };
 use crate::model::{Drive, Joint, JointKind, Model};
+
+/// How far, relative to the sub-step, an error-controlled sub-step's length
+/// may be from the one its Newton matrix was built for.
+const NEWTON_REUSE: f64 = 0.3;
 
 /// The iteration workspace of the Newmark sub-steps, sized once for a model.
 #[derive(Debug, Clone)]
@@ -151,9 +155,12 @@ impl NewmarkSolver {
         state.time = t;
         self.predict(model, inputs, start, state, t, h);
         let nf = self.free.len();
-        // Grid sub-steps differ in length by rounding only.
+        // Fixed sub-steps differ in length by rounding only; error-controlled
+        // ones change gradually, and a Newton matrix of a nearby length still
+        // contracts (one that does not is rebuilt after two corrections).
+        let reuse = if settings.fixed_step() { 1e-9 } else { NEWTON_REUSE };
         let newton_fits = self.newton_valid
-            && (self.newton_h - h).abs() <= 1e-9 * h
+            && (self.newton_h - h).abs() <= reuse * h
             && self.newton_free.len() == nf
             && self.newton_free.iter().zip(&self.free).all(|(a, b)| a == b);
         if !newton_fits {
@@ -339,7 +346,7 @@ impl NewmarkSolver {
     }
 
     /// Drive forces (2.1), contact loads and friction (3.11)–(3.15), phase
-    /// margins (3.16) of every joint from the reactions in the workspace;
+    /// margins (3.16) and clearance margins (2.1) of every joint from the reactions in the workspace;
     /// fills the residuals of the free joints into `self.correction` and
     /// returns the largest one relative to its joint's force scale, and the
     /// sum of the squares of these relative residuals.
@@ -351,6 +358,7 @@ impl NewmarkSolver {
         let (normal_load, lever_load) = (&mut st.normal_load[..n], &mut st.lever_load[..n]);
         let (drive_force_out, damping_force) = (&mut st.drive_force[..n], &mut st.damping_force[..n]);
         let (friction_force, margin) = (&mut st.friction_force[..n], &mut st.margin[..n]);
+        let clearance_edge = &mut st.clearance_margin[..n];
         let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
         let correction = &mut self.correction[..n];
         let mut worst: f64 = 0.0;
@@ -376,12 +384,15 @@ impl NewmarkSolver {
                     drive_force_out[i] = tau + friction;
                     damping_force[i] = 0.0;
                     margin[i] = f64::INFINITY;
+                    clearance_edge[i] = f64::INFINITY;
                 }
                 Drive::Flexible { stiffness, damping, clearance } => {
                     let drive = drive_force(stiffness, damping, clearance, q_star[i], qd_star[i], q[i], qd[i]);
                     let fd = drive.force;
                     drive_force_out[i] = fd;
                     damping_force[i] = drive.damping;
+                    clearance_edge[i] =
+                        if clearance > 0.0 { clearance_margin(clearance, q_star[i] - q[i]) } else { f64::INFINITY };
                     match phase[i] {
                         Phase::Stuck => {
                             // (3.17): F* = τ is the axial reaction with the joint held.

@@ -4,6 +4,7 @@
 use super::inputs::{DriveInputs, InputPolynomial};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
+use super::switching::StepControl;
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use super::newmark::{NewmarkSolver, SubStep};
 use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics};
@@ -233,6 +234,7 @@ impl Simulator {
         let st = &mut self.state;
         st.time = t0;
         st.energy = Default::default();
+        st.steps = Default::default();
         st.stuck_time.fill(0.0);
         for (i, joint) in self.model.joints.iter().enumerate() {
             match joint.drive {
@@ -270,9 +272,11 @@ impl Simulator {
 
     /// Advances the state over one communication interval of length
     /// `interval` (s) with the drive inputs at its start, held as their Taylor
-    /// polynomial. The interval is covered by ceil(interval / h_max) equal
-    /// sub-steps, each shortened where a joint sticks or slips so that the
-    /// transition falls on a sub-step boundary. On error the state is left as
+    /// polynomial. The interval is covered by sub-steps of fixed length or of
+    /// the length the error control chooses (see
+    /// [`IntegratorSettings`](crate::model::IntegratorSettings)),
+    /// each shortened where a joint sticks or slips or a drive's clearance
+    /// closes or opens, so that the event falls on a sub-step boundary. On error the state is left as
     /// it was.
     pub fn advance(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
         if !(interval.is_finite() && interval > 0.0) {
@@ -332,25 +336,50 @@ impl Simulator {
         self.step_interval(t0, interval)
     }
 
-    /// The sub-steps of the interval from `t0` of length `interval`: it is
-    /// covered by ceil(interval / h_max) equal sub-steps, each shortened
-    /// where a joint sticks or slips. Inlined into its two instruction-set
-    /// variants, as is everything it calls per sub-step.
+    /// The sub-steps of the interval from `t0` of length `interval`.
+    /// Fixed sub-steps (h_min = h_max): ceil(interval / h_max) equal ones.
+    /// Error-controlled: each of the length the last one proposed (h_min at
+    /// the start), the last one shortened to end at the interval's end, and a
+    /// remainder below two proposals split in halves so that no sliver is
+    /// left. Either way a sub-step ends early at an event. Inlined into its
+    /// two instruction-set variants, as is everything it calls per sub-step.
     #[inline(always)]
     fn step_interval(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
-        let h_max = self.model.integrator.h_max;
-        let steps = (interval / h_max).ceil().max(1.0);
-        let h = interval / steps;
-        let steps = steps as u64;
-        for k in 1..=steps {
-            let t_grid = if k == steps { t0 + interval } else { t0 + k as f64 * h };
-            // An event shortens a sub-step; the rest of it up to the grid
-            // point is taken next.
-            while t_grid - self.state.time > 1e-9 * h {
-                self.substep(t_grid)?;
+        let settings = self.model.integrator;
+        if settings.fixed_step() {
+            let h_max = settings.h_max;
+            let steps = (interval / h_max).ceil().max(1.0);
+            let h = interval / steps;
+            let steps = steps as u64;
+            for k in 1..=steps {
+                let t_grid = if k == steps { t0 + interval } else { t0 + k as f64 * h };
+                // An event shortens a sub-step; the rest of it up to the grid
+                // point is taken next.
+                while t_grid - self.state.time > 1e-9 * h {
+                    self.substep(t_grid, StepControl::Fixed)?;
+                }
+                self.state.time = t_grid;
             }
-            self.state.time = t_grid;
+            return Ok(());
         }
+        let t_end = t0 + interval;
+        loop {
+            let remaining = t_end - self.state.time;
+            if remaining <= 1e-9 * settings.h_min {
+                break;
+            }
+            let next = self.state.steps.next_h;
+            let h = if next > 0.0 { next.clamp(settings.h_min, settings.h_max) } else { settings.h_min };
+            let (target, shortened) = if remaining <= h {
+                (t_end, true)
+            } else if remaining < 2.0 * h {
+                (self.state.time + 0.5 * remaining, true)
+            } else {
+                (self.state.time + h, false)
+            };
+            self.substep(target, StepControl::Adaptive { shortened })?;
+        }
+        self.state.time = t_end;
         Ok(())
     }
 

@@ -48,6 +48,9 @@ pub struct State {
     /// Distance to the next phase change: d·q̇ while slipping in direction d,
     /// the static reserve μ_s·L − |F^d − F*| while stuck (3.16), +∞ otherwise.
     pub margin: Vec<f64>,
+    /// |q* − q| − Δ of a flexible drive with clearance Δ > 0: it changes sign
+    /// where δ of (2.1) switches; +∞ for the other joints.
+    pub clearance_margin: Vec<f64>,
     /// Joint force at the reaction reference point, joint frame, N.
     pub reaction_force: Vec<Vec3>,
     /// Joint moment about the reaction reference point, joint frame, N·m.
@@ -63,6 +66,22 @@ pub struct State {
     pub end_point: Vec3,
     /// End point of the same manipulator with rigid drives (q = q*), m.
     pub end_point_rigid: Vec3,
+    /// Sub-steps taken and the error control's next proposal.
+    pub steps: StepStatistics,
+}
+
+/// The record of the stepper's sub-steps since initialization.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepStatistics {
+    /// Accepted sub-steps (including those that end at an event).
+    pub accepted: u64,
+    /// Sub-steps rejected by the error control and retried shorter.
+    pub rejected: u64,
+    /// Length of the last accepted sub-step, s.
+    pub last_h: f64,
+    /// Length the error control proposes for the next sub-step, s (0: none
+    /// yet, the stepper starts with h_min).
+    pub next_h: f64,
 }
 
 /// Energies and works, J.
@@ -119,6 +138,7 @@ impl State {
             normal_load: vec![0.0; n],
             lever_load: vec![0.0; n],
             margin: vec![f64::INFINITY; n],
+            clearance_margin: vec![f64::INFINITY; n],
             reaction_force: vec![Vec3::zeros(); n],
             reaction_moment: vec![Vec3::zeros(); n],
             stick_count: vec![0; n],
@@ -126,6 +146,7 @@ impl State {
             energy: Energy::default(),
             end_point: Vec3::zeros(),
             end_point_rigid: Vec3::zeros(),
+            steps: StepStatistics::default(),
         }
     }
 
@@ -146,6 +167,7 @@ impl State {
             normal_load,
             lever_load,
             margin,
+            clearance_margin,
             reaction_force,
             reaction_moment,
             stick_count,
@@ -153,6 +175,7 @@ impl State {
             energy,
             end_point,
             end_point_rigid,
+            steps,
         } = other;
         self.time = *time;
         self.q.copy_from_slice(q);
@@ -167,6 +190,7 @@ impl State {
         self.normal_load.copy_from_slice(normal_load);
         self.lever_load.copy_from_slice(lever_load);
         self.margin.copy_from_slice(margin);
+        self.clearance_margin.copy_from_slice(clearance_margin);
         self.reaction_force.copy_from_slice(reaction_force);
         self.reaction_moment.copy_from_slice(reaction_moment);
         self.stick_count.copy_from_slice(stick_count);
@@ -174,6 +198,7 @@ impl State {
         self.energy = *energy;
         self.end_point = *end_point;
         self.end_point_rigid = *end_point_rigid;
+        self.steps = *steps;
     }
 
     /// Makes `self` the start of a sub-step from `other`, the current state:
@@ -192,6 +217,7 @@ impl State {
         std::mem::swap(&mut self.damping_force, &mut other.damping_force);
         std::mem::swap(&mut self.friction_force, &mut other.friction_force);
         std::mem::swap(&mut self.margin, &mut other.margin);
+        std::mem::swap(&mut self.clearance_margin, &mut other.clearance_margin);
     }
 
     /// Number of joints.
@@ -231,6 +257,7 @@ impl State {
             self.normal_load.len(),
             self.lever_load.len(),
             self.margin.len(),
+            self.clearance_margin.len(),
             self.reaction_force.len(),
             self.reaction_moment.len(),
             self.stick_count.len(),

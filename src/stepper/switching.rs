@@ -1,8 +1,9 @@
 //! Stick–slip switching (study eqs. 3.16–3.18) with the transition located
 //! inside the sub-step, and the energy account of accepted sub-steps.
 
+use super::error_control::{error_ratio, optimal_factor, GROWTH_MAX};
 use super::simulator::Simulator;
-use super::state::Phase;
+use super::state::{Phase, State};
 use crate::error::StepError;
 
 /// A transition is located to this fraction of the sub-step.
@@ -12,36 +13,80 @@ const MAX_HALVINGS: usize = 12;
 /// Bound on the regula falsi iterations that locate a transition.
 const MAX_LOCATE_ITERATIONS: usize = 60;
 
+/// Something that ends a sub-step at the instant it happens.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Event {
+    /// Joint `.0`'s phase margin (3.16) turns negative: a slipping joint's
+    /// velocity crosses zero, or a stuck joint's static friction is exceeded.
+    Phase(usize),
+    /// Joint `.0`'s deflection crosses an edge of its clearance, where δ of
+    /// (2.1) switches; `.1` is the sign of the clearance margin before.
+    Clearance(usize, f64),
+}
+
+/// How [`Simulator::substep`] chooses its length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum StepControl {
+    /// A sub-step of the fixed grid: its length is not controlled.
+    Fixed,
+    /// Error-controlled; `shortened` when the interval's end (not the error
+    /// control) set the target.
+    Adaptive { shortened: bool },
+}
+
 impl Simulator {
-    /// Takes one sub-step towards time `t_target`. If a joint's margin changes
-    /// sign inside it (a slipping joint's velocity crosses zero, or a stuck
-    /// joint's static friction is exceeded), the sub-step is shortened to end
-    /// just past that instant, located by Illinois regula falsi, and the
-    /// joint's phase is decided there.
+    /// Takes one sub-step towards time `t_target`. With error control, a
+    /// sub-step whose local error exceeds the tolerance is retried shorter
+    /// (down to h_min), and the next length is proposed. If a joint's margin
+    /// changes sign inside it (a slipping joint's velocity crosses zero, a
+    /// stuck joint's static friction is exceeded, a drive's deflection
+    /// crosses an edge of its clearance), the sub-step is shortened to end
+    /// just past that instant, located by Illinois regula falsi; a joint's
+    /// phase is decided there.
     #[inline(always)]
-    pub(crate) fn substep(&mut self, t_target: f64) -> Result<(), StepError> {
+    pub(crate) fn substep(&mut self, t_target: f64, control: StepControl) -> Result<(), StepError> {
         // A phase change that could not happen at the previous instant (a
         // marginal slip) is tried again at this one.
         self.instant += 1;
         self.settle_phases()?;
         self.start.take_step_start(&mut self.state);
         let t0 = self.start.time;
+        let settings = self.model.integrator;
         let mut h = t_target - t0;
         // Where the friction loads change their piecewise form the iteration
         // may not settle; a shorter sub-step starts it closer to the solution.
         let mut halvings = 0;
-        while let Err(e) = self.solve(t0 + h) {
-            if !matches!(e, StepError::NotConverged { .. }) || halvings == MAX_HALVINGS {
-                return Err(e);
+        let factor = loop {
+            if let Err(e) = self.solve(t0 + h) {
+                if !matches!(e, StepError::NotConverged { .. }) || halvings == MAX_HALVINGS {
+                    return Err(e);
+                }
+                halvings += 1;
+                h *= 0.5;
+                continue;
             }
-            halvings += 1;
-            h *= 0.5;
+            if control == StepControl::Fixed {
+                break 1.0;
+            }
+            let ratio = error_ratio(&self.model, &self.start, &self.state, h);
+            let factor = optimal_factor(ratio);
+            if ratio > 1.0 && h > settings.h_min {
+                self.state.steps.rejected += 1;
+                h = (h * factor).max(settings.h_min);
+                continue;
+            }
+            break factor;
+        };
+        if let StepControl::Adaptive { shortened } = control {
+            let steps = &mut self.state.steps;
+            let proposal = if shortened { steps.next_h.min(h * factor) } else { h * factor.min(GROWTH_MAX) };
+            steps.next_h = proposal.clamp(settings.h_min, settings.h_max);
         }
-        let Some(joint) = self.earliest_crossing() else {
+        let Some(event) = self.earliest_event() else {
             return self.accept();
         };
         let (mut lo, mut hi) = (0.0, 1.0);
-        let (mut g_lo, mut g_hi) = (self.start.margin[joint], self.state.margin[joint]);
+        let (mut g_lo, mut g_hi) = (self.event_value(event, &self.start), self.event_value(event, &self.state));
         let mut solved_at_hi = true;
         let mut side = 0;
         for _ in 0..MAX_LOCATE_ITERATIONS {
@@ -50,7 +95,7 @@ impl Simulator {
             }
             let theta = (lo + (hi - lo) * g_lo / (g_lo - g_hi)).clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
             self.solve_out_of_line(t0 + theta * h)?;
-            let g = self.state.margin[joint];
+            let g = self.event_value(event, &self.state);
             if g < 0.0 {
                 (hi, g_hi, solved_at_hi) = (theta, g, true);
                 if side == -1 {
@@ -70,24 +115,46 @@ impl Simulator {
         }
         self.accept()?;
         self.instant += 1;
-        let breakaway = self.state.phase[joint] == Phase::Stuck;
-        self.decide_at_rest(joint, breakaway)?;
+        if let Event::Phase(joint) = event {
+            let breakaway = self.state.phase[joint] == Phase::Stuck;
+            self.decide_at_rest(joint, breakaway)?;
+        }
         self.settle_phases()
     }
 
-    /// The joint whose margin crosses zero first in the solved sub-step, by
-    /// linear interpolation of the margins at its ends.
+    /// The value of `event`'s margin in `state`: positive before the event,
+    /// negative after it.
     #[inline(always)]
-    fn earliest_crossing(&self) -> Option<usize> {
+    fn event_value(&self, event: Event, state: &State) -> f64 {
+        match event {
+            Event::Phase(i) => state.margin[i],
+            Event::Clearance(i, sign) => sign * state.clearance_margin[i],
+        }
+    }
+
+    /// The event that happens first in the solved sub-step, by linear
+    /// interpolation of the margins at its ends: a phase margin that turns
+    /// negative, or a clearance margin that changes sign.
+    #[inline(always)]
+    fn earliest_event(&self) -> Option<Event> {
         let n = self.model.nq();
         let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
+        let (c_start, c_end) = (&self.start.clearance_margin[..n], &self.state.clearance_margin[..n]);
         let (mut best, mut best_theta) = (None, f64::INFINITY);
         for i in 0..n {
             let (g0, g1) = (start[i], end[i]);
             if g1 < 0.0 && (0.0..f64::INFINITY).contains(&g0) {
                 let theta = g0 / (g0 - g1);
                 if theta < best_theta {
-                    (best, best_theta) = (Some(i), theta);
+                    (best, best_theta) = (Some(Event::Phase(i)), theta);
+                }
+            }
+            let (c0, c1) = (c_start[i], c_end[i]);
+            // Infinite for joints without clearance; a sign change otherwise.
+            if c0.is_finite() && c1.is_finite() && (c0 > 0.0) != (c1 > 0.0) && c0 != 0.0 {
+                let theta = c0 / (c0 - c1);
+                if theta < best_theta {
+                    (best, best_theta) = (Some(Event::Clearance(i, c0.signum())), theta);
                 }
             }
         }
@@ -131,6 +198,8 @@ impl Simulator {
         }
         // The end of this sub-step is the start of the next one.
         self.solver.accepted(dt);
+        st.steps.accepted += 1;
+        st.steps.last_h = dt;
         let e = &mut st.energy;
         e.drive_work += 0.5 * drive_work;
         e.friction_heat += 0.5 * friction_heat;
