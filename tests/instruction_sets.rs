@@ -13,9 +13,9 @@ use stick_slip_manipulator::{DriveInputs, Model, Simulator, StepError};
 /// The state after every interval of the reference run, printed with `{:?}`:
 /// Rust prints each f64 as the shortest decimal that reads back to the same
 /// bits (and −0.0 as such), so equal strings mean bit-identical states.
-fn reference_run(set: InstructionSet, h_max: f64, end: f64) -> (Vec<String>, String) {
+fn reference_run(set: InstructionSet, steps: (f64, f64), end: f64) -> (Vec<String>, String) {
     let mut model = Model::reference_rrpr();
-    model.integrator.h_max = h_max;
+    (model.integrator.h_min, model.integrator.h_max) = steps;
     let mut sim = Simulator::new(model).unwrap();
     sim.set_instruction_set(set).unwrap();
     assert_eq!(sim.instruction_set(), set);
@@ -31,17 +31,19 @@ fn reference_run(set: InstructionSet, h_max: f64, end: f64) -> (Vec<String>, Str
     (states, format!("{:?}", sim.transitions()))
 }
 
-fn assert_identical(h_max: f64, end: f64) {
-    let (baseline, baseline_transitions) = reference_run(InstructionSet::Baseline, h_max, end);
-    let (avx2, avx2_transitions) = reference_run(InstructionSet::Avx2, h_max, end);
+/// `steps`: (h_min, h_max), s.
+fn assert_identical(steps: (f64, f64), end: f64) {
+    let h_max = steps;
+    let (baseline, baseline_transitions) = reference_run(InstructionSet::Baseline, steps, end);
+    let (avx2, avx2_transitions) = reference_run(InstructionSet::Avx2, steps, end);
     if let Some(k) = baseline.iter().zip(&avx2).position(|(a, b)| a != b) {
         panic!(
-            "h_max {h_max}: states differ after interval {k}:\nbaseline {}\nAVX2     {}",
+            "sub-steps {h_max:?}: states differ after interval {k}:\nbaseline {}\nAVX2     {}",
             baseline[k], avx2[k]
         );
     }
     assert_eq!(baseline.len(), avx2.len());
-    assert_eq!(baseline_transitions, avx2_transitions, "h_max {h_max}: transition logs differ");
+    assert_eq!(baseline_transitions, avx2_transitions, "sub-steps {h_max:?}: transition logs differ");
     // The runs did stick and slip: the comparison covers the switching path.
     assert!(baseline_transitions.contains("Stuck"), "no transitions: {baseline_transitions}");
 }
@@ -59,9 +61,13 @@ fn baseline_and_avx2_give_bit_identical_reference_runs() {
         eprintln!("this processor has no AVX2: only the baseline loop was checked");
         return;
     }
-    // The whole reference motion at the study's sub-step, and ten times coarser.
-    assert_identical(2e-6, REFERENCE_RUN_TIME);
-    assert_identical(2e-5, REFERENCE_RUN_TIME);
+    // The whole reference motion at the study's fixed sub-step, ten times
+    // coarser, and error-controlled with the default settings.
+    assert_identical((2e-6, 2e-6), REFERENCE_RUN_TIME);
+    assert_identical((2e-5, 2e-5), REFERENCE_RUN_TIME);
+    let default = Model::reference_rrpr().integrator;
+    assert!(!default.fixed_step());
+    assert_identical((default.h_min, default.h_max), REFERENCE_RUN_TIME);
 }
 
 #[test]

@@ -214,22 +214,22 @@ fn edit_helper_targets_the_named_joint() {
 #[test]
 fn unknown_joint_type_is_a_syntax_error() {
     let e = rejected(&edit_joint(2, "type = \"revolute\"", "type = \"screw\""));
-    assert_syntax(&e, &["unknown variant `screw`", "`revolute`", "`prismatic`", "line 38"]);
+    assert_syntax(&e, &["unknown variant `screw`", "`revolute`", "`prismatic`", "line 40"]);
 }
 
 #[test]
 fn misspelt_key_is_rejected_not_defaulted() {
     let e = rejected(&edit_joint(3, "k = 1.0e6", "stifness = 1.0e6"));
-    assert_syntax(&e, &["unknown field `stifness`", "`k`", "line 53"]);
+    assert_syntax(&e, &["unknown field `stifness`", "`k`", "line 55"]);
 
     let e = rejected(&edit("tolerance = 1e-10", "tolerence = 1e-10"));
-    assert_syntax(&e, &["unknown field `tolerence`", "line 20"]);
+    assert_syntax(&e, &["unknown field `tolerence`", "line 22"]);
 }
 
 #[test]
 fn missing_required_field_is_a_syntax_error() {
     let e = rejected(&edit_joint(1, "mass = 25.0, ", ""));
-    assert_syntax(&e, &["missing field `mass`", "line 34"]);
+    assert_syntax(&e, &["missing field `mass`", "line 36"]);
 
     let e = rejected(&edit_joint(1, "d = 0.6\n", ""));
     assert_syntax(&e, &["missing field `d`"]);
@@ -244,10 +244,10 @@ fn toml_syntax_error_is_a_syntax_error() {
     assert_syntax(&e, &["line 12"]);
 
     let e = rejected(&edit_joint(1, "d = 0.6", "d = 0.6 +"));
-    assert_syntax(&e, &["line 27"]);
+    assert_syntax(&e, &["line 29"]);
 
     let e = rejected(&edit("max_iterations = 50", "max_iterations = -1"));
-    assert_syntax(&e, &["`-1`", "line 21"]);
+    assert_syntax(&e, &["`-1`", "line 23"]);
 }
 
 #[test]
@@ -408,7 +408,7 @@ fn nan_and_infinity_are_rejected() {
     let e = rejected(&edit("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -inf]"));
     assert_invalid_parameter(&e, "gravity[3]", f64::NEG_INFINITY, "finite");
 
-    let e = rejected(&edit("h_max = 2e-6", "h_max = nan"));
+    let e = rejected(&edit("h_max = 5e-4", "h_max = nan"));
     assert_invalid_parameter(&e, "integrator.h_max", f64::NAN, "finite");
 
     let e = rejected(&edit("beta = 0.25", "beta = nan"));
@@ -423,8 +423,21 @@ fn integrator_settings_are_checked() {
     let e = rejected(&edit("gamma = 0.5", "gamma = 0.3"));
     assert_invalid_parameter(&e, "integrator.gamma", 0.3, "[0.5, 1]");
 
-    let e = rejected(&edit("h_max = 2e-6", "h_max = 0.0"));
+    let e = rejected(&edit("h_max = 5e-4", "h_max = 0.0"));
     assert_invalid_parameter(&e, "integrator.h_max", 0.0, "positive");
+
+    let e = rejected(&edit("h_max = 5e-4", "h_max = 0.5"));
+    assert_invalid_parameter(&e, "integrator.h_max", 0.5, "[1e-9, 1e-2]");
+    let e = rejected(&edit("h_min = 2e-6", "h_min = 1e-3"));
+    assert_invalid_parameter(&e, "integrator.h_min", 1e-3, "must not exceed h_max");
+    let e = rejected(&edit("error_tolerance = 5e-3", "error_tolerance = 0.0"));
+    assert_invalid_parameter(&e, "integrator.error_tolerance", 0.0, "(0, 0.1]");
+    let e = rejected(&edit("error_tolerance = 5e-3", "error_tolerance = 0.5"));
+    assert_invalid_parameter(&e, "integrator.error_tolerance", 0.5, "(0, 0.1]");
+    // h_min = h_max: fixed sub-steps.
+    let fixed = Model::from_toml_str(&edit("h_min = 2e-6", "h_min = 5e-4")).unwrap();
+    assert!(fixed.integrator.fixed_step());
+    assert!(!Model::reference_rrpr().integrator.fixed_step());
 
     let e = rejected(&edit("tolerance = 1e-10", "tolerance = 0.0"));
     assert_invalid_parameter(&e, "integrator.tolerance", 0.0, "(0, 1e-3]");

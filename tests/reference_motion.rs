@@ -2,7 +2,7 @@
 //! and the result is converged in the sub-step.
 //!
 //! The 2 s reference run (cycloidal inputs of shared/reference-manipulator.md)
-//! completes at h_max = 2e-6 s and shows stiction phases in joint 3 after the
+//! completes at fixed sub-steps of 2e-6 s and shows stiction phases in joint 3 after the
 //! start. The same run at h_max = 2e-5 s, ten times coarser, gives the same
 //! end-point error ε(t) to 1e-3 of its maximum and the same number of
 //! stiction phases: transitions are located inside the sub-step, so the
@@ -19,9 +19,10 @@ struct Run {
     evaluations_per_substep: f64,
 }
 
+/// The reference run with fixed sub-steps of `h_max`.
 fn reference_run(h_max: f64) -> Run {
     let mut model = Model::reference_rrpr();
-    model.integrator.h_max = h_max;
+    (model.integrator.h_min, model.integrator.h_max) = (h_max, h_max);
     let mut sim = Simulator::new(model).unwrap();
     let inputs_at = reference_inputs;
     let (q, qd, qdd) = inputs_at(0.0);

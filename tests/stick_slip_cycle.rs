@@ -19,7 +19,7 @@
 mod common;
 
 use common::sliding_block;
-use stick_slip_manipulator::model::FrictionCoefficients;
+use stick_slip_manipulator::model::{FrictionCoefficients, IntegratorSettings};
 use stick_slip_manipulator::{DriveInputs, InitialState, Phase, Simulator};
 
 const G: f64 = 9.81;
@@ -53,11 +53,33 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
 
+/// Fixed sub-steps of the study's 2e-6 s, and error control at a tolerance
+/// of 3e-6 (the default 5e-3 meets the closed form to 1.1e-4, 1e-5 to 1.04e-6).
+fn stepper_settings() -> [(&'static str, IntegratorSettings); 2] {
+    let default = IntegratorSettings::default();
+    [
+        ("fixed 2e-6 s", IntegratorSettings { h_min: 2e-6, h_max: 2e-6, tolerance: 1e-10, ..default }),
+        ("error control 3e-6", IntegratorSettings { error_tolerance: 3e-6, ..default }),
+    ]
+}
+
+fn block(m: f64, k: f64, h: f64, friction: FrictionCoefficients, integrator: IntegratorSettings) -> Simulator {
+    let mut model = sliding_block(m, k, h, friction, 0.0);
+    model.integrator = integrator;
+    Simulator::new(model).unwrap()
+}
+
 #[test]
 fn steady_stick_slip_cycle_matches_closed_form() {
+    for (name, integrator) in stepper_settings() {
+        stick_slip_cycle_matches_closed_form(name, integrator);
+    }
+}
+
+fn stick_slip_cycle_matches_closed_form(name: &str, integrator: IntegratorSettings) {
     let (m, k, v) = (1.0, 1e4, 0.01);
     let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.3, stribeck_velocity: 0.0 };
-    let mut sim = Simulator::new(sliding_block(m, k, 0.0, friction, 0.0)).unwrap();
+    let mut sim = block(m, k, 0.0, friction, integrator);
     let log = drive_at_constant_speed(&mut sim, v, 0.0, 0.35, None);
     let (f_s, f_k) = (0.3 * m * G, 0.2 * m * G);
     let omega = (k / m).sqrt();
@@ -71,31 +93,38 @@ fn steady_stick_slip_cycle_matches_closed_form() {
     for (b, s) in breakaways.iter().zip(&stops) {
         let slip_time = s.0 - b.0;
         worst = worst.max(rel(slip_time, slip)).max(rel(b.2, f_s)).max(rel(s.2, 2.0 * f_k - f_s));
-        assert!(rel(slip_time, slip) < 1e-6, "slip {slip_time} s vs closed form {slip} s");
-        assert!(rel(b.2, f_s) < 1e-6, "spring force at breakaway {} vs F_s {f_s}", b.2);
-        assert!(rel(s.2, 2.0 * f_k - f_s) < 1e-6, "spring force at stop {} vs 2F_k − F_s {}", s.2, 2.0 * f_k - f_s);
+        assert!(rel(slip_time, slip) < 1e-6, "{name}: slip {slip_time} s vs closed form {slip} s");
+        assert!(rel(b.2, f_s) < 1e-6, "{name}: spring force at breakaway {} vs F_s {f_s}", b.2);
+        assert!(rel(s.2, 2.0 * f_k - f_s) < 1e-6, "{name}: spring force at stop {} vs 2F_k − F_s {}", s.2, 2.0 * f_k - f_s);
     }
     for (s, b) in stops.iter().zip(breakaways.iter().skip(1)) {
         let stick_time = b.0 - s.0;
         worst = worst.max(rel(stick_time, stick));
-        assert!(rel(stick_time, stick) < 1e-6, "stick {stick_time} s vs closed form {stick} s");
+        assert!(rel(stick_time, stick) < 1e-6, "{name}: stick {stick_time} s vs closed form {stick} s");
     }
-    eprintln!("largest relative deviation from the closed form: {worst:.2e}");
+    let steps = sim.state().steps;
+    eprintln!("{name}: largest relative deviation from the closed form {worst:.2e}, {} sub-steps, {} rejected", steps.accepted, steps.rejected);
 }
 
 #[test]
 fn equal_coefficients_and_damping_settle_into_steady_sliding() {
+    for (name, integrator) in stepper_settings() {
+        settle_into_steady_sliding(name, integrator);
+    }
+}
+
+fn settle_into_steady_sliding(name: &str, integrator: IntegratorSettings) {
     let (m, k, h, v) = (1.0, 1e4, 20.0, 0.01);
     let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0 };
-    let mut sim = Simulator::new(sliding_block(m, k, h, friction, 0.0)).unwrap();
+    let mut sim = block(m, k, h, friction, integrator);
     let log = drive_at_constant_speed(&mut sim, v, 0.0, 2.0, None);
     // One breakaway at the start, never stuck again.
     assert_eq!(log.len(), 1, "{log:?}");
     assert_eq!(log[0].1, Phase::Slipping(1));
     assert!(rel(log[0].2, 0.2 * m * G) < 1e-9, "breakaway at F_s: {log:?}");
     let s = sim.state();
-    assert!(rel(s.qd[0], v) < 1e-6, "sliding speed {} vs drive speed {v}", s.qd[0]);
-    assert!(rel(s.drive_force[0], 0.2 * m * G) < 1e-6, "spring force {} vs F_k", s.drive_force[0]);
+    assert!(rel(s.qd[0], v) < 1e-6, "{name}: sliding speed {} vs drive speed {v}", s.qd[0]);
+    assert!(rel(s.drive_force[0], 0.2 * m * G) < 1e-6, "{name}: spring force {} vs F_k", s.drive_force[0]);
 }
 
 /// Starts the block in steady sliding at speed v, disturbed by 1e-4·v, and

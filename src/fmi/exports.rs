@@ -221,16 +221,17 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
 #[no_mangle]
 pub unsafe extern "C" fn fmi2SetupExperiment(
     c: fmi2Component,
-    _toleranceDefined: fmi2Boolean,
-    _tolerance: fmi2Real,
+    toleranceDefined: fmi2Boolean,
+    tolerance: fmi2Real,
     startTime: fmi2Real,
     stopTimeDefined: fmi2Boolean,
     stopTime: fmi2Real,
 ) -> fmi2Status {
     let stop = (stopTimeDefined != 0).then_some(stopTime);
+    let tolerance = (toleranceDefined != 0).then_some(tolerance);
     unsafe {
         with_instance(c, "fmi2SetupExperiment", States::of(&[Instantiated]), |inst| {
-            inst.setup_experiment(startTime, stop)
+            inst.setup_experiment(tolerance, startTime, stop)
         })
     }
 }

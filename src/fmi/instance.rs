@@ -2,7 +2,7 @@
 //! simulator. Safe Rust only; `boundary.rs` turns pointers into slices and
 //! results into `fmi2Status`, `exports.rs` says which states allow a call.
 
-use super::description::{self, Causality, InputField, Output, Quantity, Type, Variability, Variable};
+use super::description::{self, Causality, InputField, Output, Quantity, Setting, Type, Variability, Variable};
 use super::lifecycle::{LifeCycle, States};
 use super::logger::{Category, Logger};
 use super::snapshot::{self, Snapshot};
@@ -200,7 +200,11 @@ impl Instance {
 
     /// fmi2SetupExperiment (the master's tolerance is not used: the Newmark
     /// tolerance is the `tolerance` parameter).
-    pub(crate) fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Outcome {
+    ///
+    /// A defined `tolerance` is the relative error tolerance of the
+    /// error-controlled sub-steps, the `error_tolerance` parameter (FMI 2.0
+    /// §4.2.4: the tolerance of an FMU's internal integrator).
+    pub(crate) fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: Option<f64>) -> Outcome {
         if !start.is_finite() {
             return Err(Fault::error(format!("startTime = {start} s is not finite")));
         }
@@ -208,6 +212,13 @@ impl Instance {
             return Err(Fault::error(format!(
                 "stopTime = {stop} s is not a finite time at or after startTime = {start} s"
             )));
+        }
+        if let Some(tolerance) = tolerance {
+            let setting = Setting::ErrorTolerance;
+            setting.check(tolerance).map_err(|e| Fault::error(format!("fmi2SetupExperiment: tolerance sets {e}")))?;
+            let mut model = self.sim.model().clone();
+            setting.set(&mut model.integrator, tolerance);
+            self.sim.set_model(model).map_err(|e| Fault::error(e.to_string()))?;
         }
         self.start_time = start;
         self.stop_time = stop;

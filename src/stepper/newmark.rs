@@ -159,6 +159,7 @@ impl NewmarkSolver {
         // ones change gradually, and a Newton matrix of a nearby length still
         // contracts (one that does not is rebuilt after two corrections).
         let reuse = if settings.fixed_step() { 1e-9 } else { NEWTON_REUSE };
+        let tolerance = settings.iteration_tolerance();
         let newton_fits = self.newton_valid
             && (self.newton_h - h).abs() <= reuse * h
             && self.newton_free.len() == nf
@@ -189,7 +190,7 @@ impl NewmarkSolver {
             if !residual.is_finite() {
                 return Err(StepError::NonFiniteState { time: t });
             }
-            if residual <= settings.tolerance {
+            if residual <= tolerance {
                 self.refine_acceleration(state);
                 return Ok(());
             }

@@ -95,11 +95,22 @@ pub enum Setting {
     NewmarkGamma,
     /// Relative tolerance of the Newmark iteration.
     Tolerance,
+    /// Smallest internal sub-step h_min, s.
+    HMin,
+    /// Relative tolerance of the sub-steps' local error.
+    ErrorTolerance,
 }
 
 impl Setting {
     /// Every setting, in layout order.
-    pub const ALL: [Setting; 4] = [Setting::HMax, Setting::NewmarkBeta, Setting::NewmarkGamma, Setting::Tolerance];
+    pub const ALL: [Setting; 6] = [
+        Setting::HMax,
+        Setting::NewmarkBeta,
+        Setting::NewmarkGamma,
+        Setting::Tolerance,
+        Setting::HMin,
+        Setting::ErrorTolerance,
+    ];
 
     /// Variable name.
     pub fn name(self) -> &'static str {
@@ -108,6 +119,8 @@ impl Setting {
             Setting::NewmarkBeta => "newmark_beta",
             Setting::NewmarkGamma => "newmark_gamma",
             Setting::Tolerance => "tolerance",
+            Setting::HMin => "h_min",
+            Setting::ErrorTolerance => "error_tolerance",
         }
     }
 
@@ -118,6 +131,8 @@ impl Setting {
             Setting::NewmarkBeta => s.beta,
             Setting::NewmarkGamma => s.gamma,
             Setting::Tolerance => s.tolerance,
+            Setting::HMin => s.h_min,
+            Setting::ErrorTolerance => s.error_tolerance,
         }
     }
 
@@ -128,6 +143,8 @@ impl Setting {
             Setting::NewmarkBeta => s.beta = value,
             Setting::NewmarkGamma => s.gamma = value,
             Setting::Tolerance => s.tolerance = value,
+            Setting::HMin => s.h_min = value,
+            Setting::ErrorTolerance => s.error_tolerance = value,
         }
     }
 
@@ -136,7 +153,14 @@ impl Setting {
     /// fmi2SetReal so that a bad value is rejected by the call that sets it.
     fn bounds(self) -> (f64, Option<f64>, bool) {
         match self {
-            Setting::HMax => (0.0, None, true),
+            Setting::HMax | Setting::HMin => {
+                let (min, max) = IntegratorSettings::STEP_RANGE;
+                (min, Some(max), false)
+            }
+            Setting::ErrorTolerance => {
+                let (min, max) = IntegratorSettings::ERROR_TOLERANCE_RANGE;
+                (min, Some(max), true)
+            }
             Setting::NewmarkBeta => {
                 let (min, max) = IntegratorSettings::BETA_RANGE;
                 (min, Some(max), false)
@@ -326,12 +350,20 @@ pub fn variables(model: &Model) -> Vec<Variable> {
     for s in Setting::ALL {
         let (min, max, _) = s.bounds();
         let (unit, what) = match s {
-            Setting::HMax => (Some("s"), "Largest internal sub-step h_max of the Newmark stepper"),
+            Setting::HMax => (
+                Some("s"),
+                "Largest internal sub-step h_max of the Newmark stepper (h_min = h_max: fixed sub-steps of that length)",
+            ),
+            Setting::HMin => (Some("s"), "Smallest internal sub-step h_min of the error-controlled Newmark stepper"),
+            Setting::ErrorTolerance => (
+                None,
+                "Relative tolerance of the sub-steps' local error, per second of motion, weighted by the drive deflections (fmi2SetupExperiment's tolerance sets it)",
+            ),
             Setting::NewmarkBeta => (None, "Newmark beta (1/4: average acceleration)"),
             Setting::NewmarkGamma => (None, "Newmark gamma"),
             Setting::Tolerance => (
                 None,
-                "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces (the tolerance argument of fmi2SetupExperiment is not used)",
+                "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces (with error control no tighter than 1e-4 error_tolerance)",
             ),
         };
         let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };

@@ -85,6 +85,9 @@ fn write_document(w: &mut Writer<Vec<u8>>, model: &Model, vars: &[Variable], gui
                     ("startTime", real(start).as_str()),
                     ("stopTime", &real(stop)),
                     ("stepSize", &real(step)),
+                    // The relative tolerance of the model's error control,
+                    // which fmi2SetupExperiment's tolerance overrides.
+                    ("tolerance", &real(model.integrator.error_tolerance)),
                 ])
                 .write_empty()?;
             w.create_element("ModelVariables")
