@@ -430,9 +430,9 @@ fn integrator_settings_are_checked() {
     assert_invalid_parameter(&e, "integrator.h_max", 0.5, "[1e-9, 1e-2]");
     let e = rejected(&edit("h_min = 2e-6", "h_min = 1e-3"));
     assert_invalid_parameter(&e, "integrator.h_min", 1e-3, "must not exceed h_max");
-    let e = rejected(&edit("error_tolerance = 5e-3", "error_tolerance = 0.0"));
+    let e = rejected(&edit("error_tolerance = 5e-4", "error_tolerance = 0.0"));
     assert_invalid_parameter(&e, "integrator.error_tolerance", 0.0, "(0, 0.1]");
-    let e = rejected(&edit("error_tolerance = 5e-3", "error_tolerance = 0.5"));
+    let e = rejected(&edit("error_tolerance = 5e-4", "error_tolerance = 0.5"));
     assert_invalid_parameter(&e, "integrator.error_tolerance", 0.5, "(0, 0.1]");
     // h_min = h_max: fixed sub-steps.
     let fixed = Model::from_toml_str(&edit("h_min = 2e-6", "h_min = 5e-4")).unwrap();

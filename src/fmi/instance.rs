@@ -83,6 +83,9 @@ fn output_value(s: &State, o: Output) -> Value {
         Output::DriveWork => e.drive_work,
         Output::FrictionHeat => e.friction_heat,
         Output::DampingHeat => e.damping_heat,
+        Output::SubSteps => s.steps.accepted as f64,
+        Output::RejectedSubSteps => s.steps.rejected as f64,
+        Output::LastSubStep => s.steps.last_h,
     })
 }
 

@@ -18,7 +18,7 @@ pub struct IntegratorSettings {
     /// gives fixed sub-steps of that length (shortened only at events).
     pub h_max: f64,
     /// Relative tolerance of the local error of a sub-step (see
-    /// `stepper::error_control`), default 5e-3; what fmi2SetupExperiment's
+    /// `stepper::error_control`), default 5e-4; what fmi2SetupExperiment's
     /// tolerance sets.
     pub error_tolerance: f64,
     /// Newmark β, default ¼ (average acceleration).
@@ -71,7 +71,7 @@ impl Default for IntegratorSettings {
         IntegratorSettings {
             h_min: 2e-6,
             h_max: 5e-4,
-            error_tolerance: 5e-3,
+            error_tolerance: 5e-4,
             beta: 0.25,
             gamma: 0.5,
             tolerance: 1e-10,

@@ -12,9 +12,12 @@
 //! **Weights.** The quantities users read are small differences: the end
 //! point error ε is 10⁻⁴ of the coordinates and comes from the drive
 //! deflections q* − q. The error of joint i is therefore measured against
-//! its deflection, floored by the deflection its friction causes:
-//! w_i = |q*_i − q_i| + |F^f_i|/k_i (the second term keeps the weight from
-//! vanishing where the deflection passes through zero during a vibration).
+//! the stretch of its drive spring, floored by the stretch its friction
+//! causes: w_i = max(|q*_i − q_i| − Δ_i, 0) + |F^f_i|/k_i. The clearance Δ_i
+//! does not count: a joint sliding freely inside it must still end where
+//! friction stops it to the accuracy of an engaged drive's stretch. The
+//! friction term keeps the weight from vanishing where the stretch passes
+//! through zero during a vibration or inside the clearance.
 //! A sub-step is accepted when max_i |e_i| / (tol·w_i) ≤ 1.
 //!
 //! **Control.** The error grows with h³, so the next length is
@@ -22,6 +25,7 @@
 //! stepper neither oscillates nor collapses, and to [h_min, h_max].
 
 use super::state::{Phase, State};
+use crate::forces::drive::clearance_margin;
 use crate::model::{Drive, Model};
 
 /// Safety factor on the optimal length.
@@ -42,9 +46,10 @@ pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64) -
         (&start.qdd[..n], &state.qdd[..n], &state.q[..n], &state.q_star[..n], &state.friction_force[..n], &state.phase[..n]);
     let mut worst: f64 = 0.0;
     for (i, joint) in model.joints.iter().enumerate().take(n) {
-        let (Drive::Flexible { stiffness, .. }, Phase::Slipping(_)) = (joint.drive, phase[i]) else { continue };
+        let (Drive::Flexible { stiffness, clearance, .. }, Phase::Slipping(_)) = (joint.drive, phase[i]) else { continue };
         let error = coefficient * (qdd1[i] - qdd0[i]).abs();
-        let weight = (q_star[i] - q[i]).abs() + friction[i].abs() / stiffness + 1e-15 * (1.0 + q[i].abs());
+        let stretch = clearance_margin(clearance, q_star[i] - q[i]).max(0.0);
+        let weight = stretch + friction[i].abs() / stiffness + 1e-15 * (1.0 + q[i].abs());
         worst = worst.max(error / (s.error_tolerance * weight * h));
     }
     worst

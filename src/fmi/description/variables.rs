@@ -230,6 +230,12 @@ pub enum Output {
     FrictionHeat,
     /// Damping heat.
     DampingHeat,
+    /// Accepted sub-steps since initialization.
+    SubSteps,
+    /// Sub-steps rejected by the error control since initialization.
+    RejectedSubSteps,
+    /// Length of the last accepted sub-step.
+    LastSubStep,
 }
 
 /// What a variable stands for.
@@ -561,6 +567,14 @@ fn outputs(b: &mut Builder, model: &Model) {
     ];
     for (name, output, what) in energies {
         b.push(name.into(), what.into(), OUTPUT, real("J"), Quantity::Output(output));
+    }
+    let statistics = [
+        ("n_substeps", Output::SubSteps, None, "Newmark sub-steps accepted since initialization, including those that end at a stick-slip or clearance event"),
+        ("n_rejected", Output::RejectedSubSteps, None, "Sub-steps the error control rejected and retried shorter since initialization"),
+        ("h_last", Output::LastSubStep, Some("s"), "Length of the last accepted sub-step (h_min where the error control needs the floor, h_max where the motion is smooth)"),
+    ];
+    for (name, output, unit, what) in statistics {
+        b.push(name.into(), what.into(), OUTPUT, Type::Real { unit, min: None, max: None, start: None }, Quantity::Output(output));
     }
 }
 
