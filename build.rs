@@ -20,11 +20,18 @@ mod model;
 #[allow(dead_code, unused_imports)]
 #[path = "src/fmi/description/mod.rs"]
 mod description;
+/// The engine's state, which the output table reads (`crate::stepper::State`).
+#[allow(dead_code)]
+#[path = "src/stepper/state.rs"]
+mod state;
+mod stepper {
+    pub use super::state::State;
+}
 
 use std::path::Path;
 
 fn main() {
-    let inputs = ["build.rs", "models/reference_rrpr.toml", "src/model", "src/error.rs", "src/math.rs", "src/fmi/description"];
+    let inputs = ["build.rs", "models/reference_rrpr.toml", "src/model", "src/error.rs", "src/math.rs", "src/stepper/state.rs", "src/fmi/description"];
     for path in inputs {
         println!("cargo:rerun-if-changed={path}");
     }

@@ -1,6 +1,6 @@
 //! Simulates the reference motion of a model (default: the reference
 //! manipulator) with the Rust engine and writes a CSV with the FMU's
-//! variable names.
+//! outputs, named and ordered as in its modelDescription (the same table).
 //!
 //! Usage: simulate_reference [--model FILE] [--out FILE] [--interval S] [--end S]
 //!                           [--h-min S] [--h-max S] [--tol TOL]
@@ -8,6 +8,7 @@
 //! `--h-max` below the model's h_min gives fixed sub-steps of that length.
 
 use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::fmi::description::{variables, Output, Quantity};
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 use std::io::Write;
 
@@ -66,8 +67,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         std::fs::create_dir_all(dir)?;
     }
     let mut file = std::io::BufWriter::new(std::fs::File::create(&out)?);
-    write_header(&mut file, n)?;
-    write_row(&mut file, &sim)?;
+    let outputs = outputs(sim.model());
+    write_header(&mut file, &outputs)?;
+    write_row(&mut file, &sim, &outputs)?;
     let steps = (end / interval).round() as usize;
     let wall = std::time::Instant::now();
     let mut stepping = std::time::Duration::ZERO;
@@ -79,7 +81,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, interval)?;
         stepping += started.elapsed();
         evaluations += sim.iterations();
-        write_row(&mut file, &sim)?;
+        write_row(&mut file, &sim, &outputs)?;
     }
     let st = sim.state().steps;
     eprintln!(
@@ -92,45 +94,28 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-fn write_header(w: &mut impl Write, n: usize) -> std::io::Result<()> {
-    let mut cols = vec!["time".to_string()];
-    for name in ["q", "qd", "qdd", "stick", "n_stick", "t_stick", "F_drive", "F_friction", "N_normal", "eps_joint"] {
-        cols.extend((1..=n).map(|i| format!("{name}[{i}]")));
-    }
-    for i in 1..=n {
-        cols.extend((1..=3).map(|k| format!("f[{i},{k}]")));
-        cols.extend((1..=3).map(|k| format!("n[{i},{k}]")));
-    }
-    cols.push("eps".into());
-    cols.extend((1..=3).map(|k| format!("x_E[{k}]")));
-    cols.extend(["E_kin", "E_pot", "E_spring", "W_drive", "Q_friction", "Q_damping"].map(String::from));
+/// The FMU's output variables of `model`, in their modelDescription order.
+fn outputs(model: &Model) -> Vec<(String, Output)> {
+    variables(model)
+        .into_iter()
+        .filter_map(|v| match v.quantity {
+            Quantity::Output(o) => Some((v.name, o)),
+            _ => None,
+        })
+        .collect()
+}
+
+fn write_header(w: &mut impl Write, outputs: &[(String, Output)]) -> std::io::Result<()> {
+    let mut cols = vec!["time"];
+    cols.extend(outputs.iter().map(|(name, _)| name.as_str()));
     // Names such as f[1,2] contain a comma: quote them (RFC 4180).
-    let quoted: Vec<String> = cols.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.clone() }).collect();
+    let quoted: Vec<String> = cols.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.to_string() }).collect();
     writeln!(w, "{}", quoted.join(","))
 }
 
-fn write_row(w: &mut impl Write, sim: &Simulator) -> std::io::Result<()> {
+fn write_row(w: &mut impl Write, sim: &Simulator, outputs: &[(String, Output)]) -> std::io::Result<()> {
     let s = sim.state();
-    let n = s.nq();
-    let mut v = vec![s.time];
-    v.extend(&s.q);
-    v.extend(&s.qd);
-    v.extend(&s.qdd);
-    v.extend((0..n).map(|i| if s.is_stuck(i) { 1.0 } else { 0.0 }));
-    v.extend(s.stick_count.iter().map(|&c| c as f64));
-    v.extend(&s.stuck_time);
-    v.extend(&s.drive_force);
-    v.extend(&s.friction_force);
-    v.extend(&s.normal_load);
-    v.extend((0..n).map(|i| s.joint_error(i)));
-    for i in 0..n {
-        v.extend(s.reaction_force[i].iter());
-        v.extend(s.reaction_moment[i].iter());
-    }
-    v.push(s.end_point_error());
-    v.extend(s.end_point.iter());
-    let e = s.energy;
-    v.extend([e.kinetic, e.potential, e.spring, e.drive_work, e.friction_heat, e.damping_heat]);
-    let text: Vec<String> = v.iter().map(|x| format!("{x:.17e}")).collect();
+    let values = std::iter::once(s.time).chain(outputs.iter().map(|(_, o)| o.value(s)));
+    let text: Vec<String> = values.map(|x| format!("{x:.17e}")).collect();
     writeln!(w, "{}", text.join(","))
 }

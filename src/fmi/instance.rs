@@ -61,32 +61,12 @@ fn drive_inputs(inputs: &[Vec<f64>; 3]) -> DriveInputs<'_> {
 }
 
 fn output_value(s: &State, o: Output) -> Value {
-    let e = &s.energy;
-    Value::Real(match o {
-        Output::Q(j) => s.q[j],
-        Output::Qd(j) => s.qd[j],
-        Output::Qdd(j) => s.qdd[j],
-        Output::Stick(j) => return Value::Boolean(s.is_stuck(j)),
-        Output::StickCount(j) => s.stick_count[j] as f64,
-        Output::StuckTime(j) => s.stuck_time[j],
-        Output::DriveForce(j) => s.drive_force[j],
-        Output::FrictionForce(j) => s.friction_force[j],
-        Output::NormalLoad(j) => s.normal_load[j],
-        Output::ReactionForce(j, k) => s.reaction_force[j][k],
-        Output::ReactionMoment(j, k) => s.reaction_moment[j][k],
-        Output::JointError(j) => s.joint_error(j),
-        Output::EndPointError => s.end_point_error(),
-        Output::EndPoint(k) => s.end_point[k],
-        Output::KineticEnergy => e.kinetic,
-        Output::PotentialEnergy => e.potential,
-        Output::SpringEnergy => e.spring,
-        Output::DriveWork => e.drive_work,
-        Output::FrictionHeat => e.friction_heat,
-        Output::DampingHeat => e.damping_heat,
-        Output::SubSteps => s.steps.accepted as f64,
-        Output::RejectedSubSteps => s.steps.rejected as f64,
-        Output::LastSubStep => s.steps.last_h,
-    })
+    let x = o.value(s);
+    if o.kind().boolean {
+        Value::Boolean(x != 0.0)
+    } else {
+        Value::Real(x)
+    }
 }
 
 fn phase_name(p: Phase) -> &'static str {

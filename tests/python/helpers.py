@@ -341,6 +341,16 @@ def reference_slave(name: str = "ref", **kw) -> Slave:
 # comparison
 
 
+# Outputs that describe the stepper, not the motion: the sub-step sequence of an
+# error-controlled run depends on the communication points to the last bit.
+STEPPER_STATISTICS = ("n_substeps", "n_rejected", "h_last")
+
+
+def physical(names) -> list:
+    """The indices of ``names`` that are not stepper statistics."""
+    return [j for j, n in enumerate(names) if n not in STEPPER_STATISTICS]
+
+
 def max_relative_deviation(actual: np.ndarray, expected: np.ndarray) -> float:
     """max |actual - expected| / max |expected| (per signal = per column), over all columns.
     A column that is identically zero in ``expected`` must match exactly (else inf)."""

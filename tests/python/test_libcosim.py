@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from helpers import (
+    physical,
     assert_close_signals,
     input_names,
     input_vector,
@@ -105,7 +106,8 @@ def test_libcosim_close_to_fmpy_at_exact_1ms(cosim_run):
     largest magnitude (see the module docstring for why not to 1e-12); joints 1 and 3
     both break away in both runs."""
     ref, names = _fmpy_run(lambda k: (k * 1e-3, 1e-3))
-    dev = max_relative_deviation(cosim_run, ref)
+    keep = physical(names)
+    dev = max_relative_deviation(cosim_run[:, keep], ref[:, keep])
     print(f"libcosim vs fmpy at exactly 1e-3 s: max relative deviation {dev:.3e}")
     assert dev < 1e-6
     for j in ("stick[1]", "stick[3]"):

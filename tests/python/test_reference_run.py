@@ -25,6 +25,7 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from helpers import (
+    physical,
     INTERVAL,
     RUN_TIME,
     assert_close_signals,
@@ -90,7 +91,9 @@ def test_simulate_fmu_applies_inputs_at_communication_points():
     assert np.array_equal(sim, replay), f"max relative deviation {max_relative_deviation(sim, replay):.3e}"
 
     direct = direct_run(RUN_TIME, INTERVAL)
-    dev = max_relative_deviation(sim, np.array([direct[n] for n in slave.output_names()]).T)
+    names = slave.output_names()
+    keep = physical(names)
+    dev = max_relative_deviation(sim[:, keep], np.array([direct[n] for n in names]).T[:, keep])
     print(f"simulate_fmu at 1e-3 s vs engine at exactly 1e-3 s: max relative deviation {dev:.3e}")
     assert dev < 1e-6
 

@@ -55,14 +55,18 @@ def test_archive_layout_and_interface():
     assert v.by_name["stick[1]"].type == "Boolean"
     for name in ["k[1]", "k[3]", "h[1]", "mu_k[3]", "mu_s[3]", "m[1]", "slider_a[3]", "d_A[1]", "l_A[1]"]:
         assert v.by_name[name].causality == "parameter" and v.by_name[name].variability == "tunable", name
-    for name in ["h_max", "newmark_beta", "newmark_gamma", "tolerance"]:
+    for name in ["h_min", "h_max", "error_tolerance", "newmark_beta", "newmark_gamma", "tolerance"]:
         assert v.by_name[name].variability == "fixed", name
+    # The error control's tolerance is the default experiment's (fmi2SetupExperiment sets it).
+    assert float(md.defaultExperiment.tolerance) == float(v.by_name["error_tolerance"].start)
     for var in md.modelVariables:
         assert var.description, f"{var.name} has no description"
-        # every physical input and output has a unit (n_stick[i], a count, is dimensionless)
-        if var.type == "Real" and var.causality in ("input", "output") and not var.name.startswith("n_stick["):
+        # every physical input and output has a unit (counts are dimensionless)
+        counts = var.name.startswith("n_stick[") or var.name in ("n_substeps", "n_rejected")
+        if var.type == "Real" and var.causality in ("input", "output") and not counts:
             assert var.unit, f"{var.name} has no unit"
     units = {"q[1]": "rad", "q[3]": "m", "qd[3]": "m/s", "F_drive[1]": "N.m", "F_drive[3]": "N",
-             "f[1,1]": "N", "n[1,1]": "N.m", "eps": "m", "x_E[1]": "m", "E_kin": "J", "q_star[1]": "rad"}
+             "f[1,1]": "N", "n[1,1]": "N.m", "eps": "m", "x_E[1]": "m", "E_kin": "J", "q_star[1]": "rad",
+             "h_last": "s", "h_min": "s", "h_max": "s"}
     for name, unit in units.items():
         assert v.by_name[name].unit == unit, (name, v.by_name[name].unit)

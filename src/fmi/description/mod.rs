@@ -4,19 +4,22 @@
 //! This is the one place that lays out the value references. It is pure data
 //! derived from a [`Model`](crate::model::Model): the runtime (`fmi2GetReal` …),
 //! the packager (`src/bin/package_fmu.rs`) and `build.rs` all call it. `build.rs`
-//! compiles this folder into itself together with `src/model`, `src/error.rs`
-//! and `src/math.rs`, so code here may use only `crate::model`, `crate::error`,
-//! `crate::math`, `super::…` and the `quick_xml` crate.
+//! compiles this folder into itself together with `src/model`, `src/error.rs`,
+//! `src/math.rs` and `src/stepper/state.rs`, so code here may use only
+//! `crate::model`, `crate::error`, `crate::math`, `crate::stepper::State`,
+//! `super::…` and the `quick_xml` crate.
 
 mod hash;
+mod outputs;
 mod units;
 mod variables;
 mod writer;
 
 pub use hash::{fnv1a_64, Fnv1a128};
+pub use outputs::{Arity, Output, OutputKind, OutputUnit, OUTPUTS};
 pub use units::{Unit, UNITS};
 pub use variables::{
-    guid, model_hash, variables, Causality, Initial, InputField, Output, Quantity, Setting, Type, Variability, Variable,
+    guid, model_hash, variables, Causality, Initial, InputField, Quantity, Setting, Type, Variability, Variable,
 };
 pub use writer::model_description_xml;
 

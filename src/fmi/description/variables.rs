@@ -5,18 +5,16 @@
 //! is, in this order (n joints, structured names with 1-based indices):
 //!
 //! 1. inputs `q_star[i]`, `qd_star[i]`, `qdd_star[i]`, i = 1…n;
-//! 2. outputs `q[i]`, `qd[i]`, `qdd[i]`, `stick[i]`, `F_drive[i]`,
-//!    `F_friction[i]`, `N_normal[i]`, `f[i,1…3]`, `n[i,1…3]`, `eps_joint[i]`,
-//!    then `eps`, `x_E[1…3]`, `E_kin`, `E_pot`, `E_spring`, `W_drive`,
-//!    `Q_friction`, `Q_damping`;
+//! 2. outputs, kind by kind in the order of the table
+//!    [`OUTPUTS`](super::OUTPUTS) (`q[i]`, …, `f[i,k]`, …, `eps`, …);
 //! 3. tunable parameters, one block per [`Parameter`] in [`Parameter::ALL`]
 //!    order, each over the joints that have it (`Model::has_parameter`);
 //! 4. start values `use_start_values`, `q_start[i]`, `qd_start[i]` (flexible
 //!    joints only);
-//! 5. fixed integrator settings `h_max`, `newmark_beta`, `newmark_gamma`,
-//!    `tolerance`.
+//! 5. fixed integrator settings in [`Setting::ALL`] order.
 
 use super::hash::Fnv1a128;
+use super::outputs::{outputs, Output};
 use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter};
 
 /// Causality of a variable.
@@ -187,57 +185,6 @@ impl Setting {
     }
 }
 
-/// An output of the FMU (0-based joint `j`, 0-based component `k`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Output {
-    /// Joint coordinate q.
-    Q(usize),
-    /// Joint velocity q̇.
-    Qd(usize),
-    /// Joint acceleration q̈.
-    Qdd(usize),
-    /// True while the joint sticks.
-    Stick(usize),
-    /// Number of stiction phases entered since initialization.
-    StickCount(usize),
-    /// Time spent stuck since initialization.
-    StuckTime(usize),
-    /// Drive force F^d.
-    DriveForce(usize),
-    /// Friction force F^f.
-    FrictionForce(usize),
-    /// Normal load of the contact.
-    NormalLoad(usize),
-    /// Joint reaction force, joint frame.
-    ReactionForce(usize, usize),
-    /// Joint reaction moment, joint frame.
-    ReactionMoment(usize, usize),
-    /// ε_i = q*_i − q_i.
-    JointError(usize),
-    /// End point error ε (4.1).
-    EndPointError,
-    /// End point x_E in frame 0.
-    EndPoint(usize),
-    /// Kinetic energy.
-    KineticEnergy,
-    /// Potential energy of gravity.
-    PotentialEnergy,
-    /// Spring energy of the drives.
-    SpringEnergy,
-    /// Work of the drives.
-    DriveWork,
-    /// Friction heat.
-    FrictionHeat,
-    /// Damping heat.
-    DampingHeat,
-    /// Accepted sub-steps since initialization.
-    SubSteps,
-    /// Sub-steps rejected by the error control since initialization.
-    RejectedSubSteps,
-    /// Length of the last accepted sub-step.
-    LastSubStep,
-}
-
 /// What a variable stands for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Quantity {
@@ -279,16 +226,16 @@ pub struct Variable {
 }
 
 /// Units of the joint-space quantities of a joint kind.
-struct JointUnits {
-    coordinate: &'static str,
-    rate: &'static str,
-    acceleration: &'static str,
-    force: &'static str,
+pub(super) struct JointUnits {
+    pub(super) coordinate: &'static str,
+    pub(super) rate: &'static str,
+    pub(super) acceleration: &'static str,
+    pub(super) force: &'static str,
     stiffness: &'static str,
     damping: &'static str,
 }
 
-fn joint_units(kind: JointKind) -> JointUnits {
+pub(super) fn joint_units(kind: JointKind) -> JointUnits {
     match kind {
         JointKind::Revolute => JointUnits {
             coordinate: "rad",
@@ -311,10 +258,10 @@ fn joint_units(kind: JointKind) -> JointUnits {
 
 /// Collects variables, numbering them as they come.
 #[derive(Default)]
-struct Builder(Vec<Variable>);
+pub(super) struct Builder(Vec<Variable>);
 
 impl Builder {
-    fn push(
+    pub(super) fn push(
         &mut self,
         name: String,
         description: String,
@@ -334,13 +281,8 @@ impl Builder {
 }
 
 const INPUT: (Causality, Variability) = (Causality::Input, Variability::Continuous);
-const OUTPUT: (Causality, Variability) = (Causality::Output, Variability::Continuous);
 const TUNABLE: (Causality, Variability) = (Causality::Parameter, Variability::Tunable);
 const FIXED: (Causality, Variability) = (Causality::Parameter, Variability::Fixed);
-
-fn real(unit: &'static str) -> Type {
-    Type::Real { unit: Some(unit), min: None, max: None, start: None }
-}
 
 fn real_start(unit: Option<&'static str>, start: f64) -> Type {
     Type::Real { unit, min: None, max: None, start: Some(start) }
@@ -379,7 +321,7 @@ pub fn variables(model: &Model) -> Vec<Variable> {
 }
 
 /// "joint 3 (prismatic, flexible drive)".
-fn joint_label(model: &Model, j: usize) -> String {
+pub(super) fn joint_label(model: &Model, j: usize) -> String {
     let joint = &model.joints[j];
     let kind = match joint.kind {
         JointKind::Revolute => "revolute",
@@ -419,162 +361,6 @@ fn inputs(b: &mut Builder, model: &Model) {
                 Quantity::Input(field, j),
             );
         }
-    }
-}
-
-fn outputs(b: &mut Builder, model: &Model) {
-    let n = model.nq();
-    type PerJoint = (&'static str, fn(usize) -> Output, &'static str);
-    let per_joint: [PerJoint; 3] = [
-        ("q", Output::Q, "Joint coordinate q"),
-        ("qd", Output::Qd, "Joint velocity q'"),
-        ("qdd", Output::Qdd, "Joint acceleration q''"),
-    ];
-    for (k, (name, output, what)) in per_joint.into_iter().enumerate() {
-        for j in 0..n {
-            let u = joint_units(model.joints[j].kind);
-            let unit = [u.coordinate, u.rate, u.acceleration][k];
-            b.push(
-                format!("{name}[{}]", j + 1),
-                format!("{what} of {}", joint_label(model, j)),
-                OUTPUT,
-                real(unit),
-                Quantity::Output(output(j)),
-            );
-        }
-    }
-    for j in 0..n {
-        b.push(
-            format!("stick[{}]", j + 1),
-            format!("True while {} is in its stiction phase (always false for a rigid drive)", joint_label(model, j)),
-            (Causality::Output, Variability::Discrete),
-            Type::Boolean { start: None },
-            Quantity::Output(Output::Stick(j)),
-        );
-    }
-    for j in 0..n {
-        b.push(
-            format!("n_stick[{}]", j + 1),
-            format!(
-                "Number of stiction phases {} has entered since initialization, also those that began and ended inside a communication step (a joint that starts stuck counts one)",
-                joint_label(model, j)
-            ),
-            OUTPUT,
-            Type::Real { unit: None, min: None, max: None, start: None },
-            Quantity::Output(Output::StickCount(j)),
-        );
-    }
-    for j in 0..n {
-        b.push(
-            format!("t_stick[{}]", j + 1),
-            format!("Total time {} has spent in stiction phases since initialization", joint_label(model, j)),
-            OUTPUT,
-            real("s"),
-            Quantity::Output(Output::StuckTime(j)),
-        );
-    }
-    for j in 0..n {
-        let force = joint_units(model.joints[j].kind).force;
-        let label = joint_label(model, j);
-        b.push(
-            format!("F_drive[{}]", j + 1),
-            format!("Drive force F^d (2.1) of {label}; for a rigid drive the force it supplies"),
-            OUTPUT,
-            real(force),
-            Quantity::Output(Output::DriveForce(j)),
-        );
-    }
-    for j in 0..n {
-        let force = joint_units(model.joints[j].kind).force;
-        let label = joint_label(model, j);
-        b.push(
-            format!("F_friction[{}]", j + 1),
-            format!("Friction force F^f of {label}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint"),
-            OUTPUT,
-            real(force),
-            Quantity::Output(Output::FrictionForce(j)),
-        );
-    }
-    for j in 0..n {
-        let what = match model.joints[j].kind {
-            JointKind::Prismatic => "N_s of the slider (3.11)",
-            JointKind::Revolute => "R_A + R_B + |f_z| of the bearings (3.13)-(3.15)",
-        };
-        b.push(
-            format!("N_normal[{}]", j + 1),
-            format!("Normal load {what} of {}; 0 without friction geometry", joint_label(model, j)),
-            OUTPUT,
-            real("N"),
-            Quantity::Output(Output::NormalLoad(j)),
-        );
-    }
-    for j in 0..n {
-        for k in 0..3 {
-            b.push(
-                format!("f[{},{}]", j + 1, k + 1),
-                format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
-                OUTPUT,
-                real("N"),
-                Quantity::Output(Output::ReactionForce(j, k)),
-            );
-        }
-    }
-    for j in 0..n {
-        for k in 0..3 {
-            b.push(
-                format!("n[{},{}]", j + 1, k + 1),
-                format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
-                OUTPUT,
-                real("N.m"),
-                Quantity::Output(Output::ReactionMoment(j, k)),
-            );
-        }
-    }
-    for j in 0..n {
-        let unit = joint_units(model.joints[j].kind).coordinate;
-        b.push(
-            format!("eps_joint[{}]", j + 1),
-            format!("Lag eps_i = q*_i - q_i of {} behind its drive", joint_label(model, j)),
-            OUTPUT,
-            real(unit),
-            Quantity::Output(Output::JointError(j)),
-        );
-    }
-    b.push(
-        "eps".into(),
-        "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it"
-            .into(),
-        OUTPUT,
-        real("m"),
-        Quantity::Output(Output::EndPointError),
-    );
-    for k in 0..3 {
-        b.push(
-            format!("x_E[{}]", k + 1),
-            format!("Coordinate {} of the end point E in the base frame 0", k + 1),
-            OUTPUT,
-            real("m"),
-            Quantity::Output(Output::EndPoint(k)),
-        );
-    }
-    let energies = [
-        ("E_kin", Output::KineticEnergy, "Kinetic energy of the links"),
-        ("E_pot", Output::PotentialEnergy, "Potential energy of gravity (zero at the origin of frame 0)"),
-        ("E_spring", Output::SpringEnergy, "Elastic energy of the drive springs"),
-        ("W_drive", Output::DriveWork, "Work done by the drives since initialization"),
-        ("Q_friction", Output::FrictionHeat, "Heat produced by joint friction since initialization"),
-        ("Q_damping", Output::DampingHeat, "Heat produced by drive damping since initialization"),
-    ];
-    for (name, output, what) in energies {
-        b.push(name.into(), what.into(), OUTPUT, real("J"), Quantity::Output(output));
-    }
-    let statistics = [
-        ("n_substeps", Output::SubSteps, None, "Newmark sub-steps accepted since initialization, including those that end at a stick-slip or clearance event"),
-        ("n_rejected", Output::RejectedSubSteps, None, "Sub-steps the error control rejected and retried shorter since initialization"),
-        ("h_last", Output::LastSubStep, Some("s"), "Length of the last accepted sub-step (h_min where the error control needs the floor, h_max where the motion is smooth)"),
-    ];
-    for (name, output, unit, what) in statistics {
-        b.push(name.into(), what.into(), OUTPUT, Type::Real { unit, min: None, max: None, start: None }, Quantity::Output(output));
     }
 }
 

@@ -1,0 +1,271 @@
+//! The outputs of the FMU: one table that the modelDescription writer,
+//! fmi2GetReal/fmi2GetBoolean and the CSV writer of `simulate_reference`
+//! iterate. A new output is one row of [`OUTPUTS`]: its name, how many
+//! variables it has, its unit, its description and how it is read from the
+//! engine's [`State`].
+
+use super::variables::{joint_label, joint_units, Builder, Causality, Quantity, Type, Variability};
+use crate::model::{JointKind, Model};
+use crate::stepper::State;
+
+/// How many variables an output kind has, and how they are named.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arity {
+    /// One variable, `name`.
+    Single,
+    /// Three components, `name[k]`.
+    Vector,
+    /// One per joint, `name[i]`.
+    PerJoint,
+    /// Three components per joint, `name[i,k]`.
+    PerJointVector,
+}
+
+/// The unit of an output kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputUnit {
+    /// A count or a flag.
+    None,
+    /// The same unit for every variable.
+    Fixed(&'static str),
+    /// The joint's coordinate: rad or m.
+    Coordinate,
+    /// Its rate: rad/s or m/s.
+    Rate,
+    /// Its acceleration: rad/s2 or m/s2.
+    Acceleration,
+    /// Its generalized force: N.m or N.
+    Force,
+}
+
+/// One kind of output.
+#[derive(Debug, Clone, Copy)]
+pub struct OutputKind {
+    /// Base name of its variables.
+    pub name: &'static str,
+    /// How many variables it has.
+    pub arity: Arity,
+    /// Their unit.
+    pub unit: OutputUnit,
+    /// A Boolean (`value` ≠ 0 is true) rather than a Real.
+    pub boolean: bool,
+    /// The description of the variable of joint `j` and component `k` (0-based).
+    pub description: fn(&Model, usize, usize) -> String,
+    /// Its value in a state, for joint `j` and component `k` (0-based).
+    pub value: fn(&State, usize, usize) -> f64,
+}
+
+/// One output variable: row `kind` of [`OUTPUTS`], joint `joint` and
+/// component `component` (0-based; 0 where the kind has none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Output {
+    /// Index into [`OUTPUTS`].
+    pub kind: usize,
+    /// Joint, 0-based.
+    pub joint: usize,
+    /// Component, 0-based.
+    pub component: usize,
+}
+
+impl Output {
+    /// Its row of [`OUTPUTS`].
+    pub fn kind(self) -> &'static OutputKind {
+        &OUTPUTS[self.kind]
+    }
+
+    /// Its value in `state` (Booleans as 1 and 0).
+    pub fn value(self, state: &State) -> f64 {
+        (self.kind().value)(state, self.joint, self.component)
+    }
+}
+
+const fn output(
+    name: &'static str,
+    arity: Arity,
+    unit: OutputUnit,
+    description: fn(&Model, usize, usize) -> String,
+    value: fn(&State, usize, usize) -> f64,
+) -> OutputKind {
+    OutputKind { name, arity, unit, boolean: false, description, value }
+}
+
+/// Every output kind, in the order of the variables.
+pub const OUTPUTS: &[OutputKind] = &[
+    output("q", Arity::PerJoint, OutputUnit::Coordinate, |m, j, _| format!("Joint coordinate q of {}", joint_label(m, j)), |s, j, _| s.q[j]),
+    output("qd", Arity::PerJoint, OutputUnit::Rate, |m, j, _| format!("Joint velocity q' of {}", joint_label(m, j)), |s, j, _| s.qd[j]),
+    output("qdd", Arity::PerJoint, OutputUnit::Acceleration, |m, j, _| format!("Joint acceleration q'' of {}", joint_label(m, j)), |s, j, _| s.qdd[j]),
+    OutputKind {
+        name: "stick",
+        arity: Arity::PerJoint,
+        unit: OutputUnit::None,
+        boolean: true,
+        description: |m, j, _| format!("True while {} is in its stiction phase (always false for a rigid drive)", joint_label(m, j)),
+        value: |s, j, _| f64::from(u8::from(s.is_stuck(j))),
+    },
+    output(
+        "n_stick",
+        Arity::PerJoint,
+        OutputUnit::None,
+        |m, j, _| {
+            format!(
+                "Number of stiction phases {} has entered since initialization, also those that began and ended inside a communication step (a joint that starts stuck counts one)",
+                joint_label(m, j)
+            )
+        },
+        |s, j, _| s.stick_count[j] as f64,
+    ),
+    output(
+        "t_stick",
+        Arity::PerJoint,
+        OutputUnit::Fixed("s"),
+        |m, j, _| format!("Total time {} has spent in stiction phases since initialization", joint_label(m, j)),
+        |s, j, _| s.stuck_time[j],
+    ),
+    output(
+        "F_drive",
+        Arity::PerJoint,
+        OutputUnit::Force,
+        |m, j, _| format!("Drive force F^d (2.1) of {}; for a rigid drive the force it supplies", joint_label(m, j)),
+        |s, j, _| s.drive_force[j],
+    ),
+    output(
+        "F_friction",
+        Arity::PerJoint,
+        OutputUnit::Force,
+        |m, j, _| format!("Friction force F^f of {}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint", joint_label(m, j)),
+        |s, j, _| s.friction_force[j],
+    ),
+    output(
+        "N_normal",
+        Arity::PerJoint,
+        OutputUnit::Fixed("N"),
+        |m, j, _| {
+            let what = match m.joints[j].kind {
+                JointKind::Prismatic => "N_s of the slider (3.11)",
+                JointKind::Revolute => "R_A + R_B + |f_z| of the bearings (3.13)-(3.15)",
+            };
+            format!("Normal load {what} of {}; 0 without friction geometry", joint_label(m, j))
+        },
+        |s, j, _| s.normal_load[j],
+    ),
+    output(
+        "f",
+        Arity::PerJointVector,
+        OutputUnit::Fixed("N"),
+        |_, j, k| format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+        |s, j, k| s.reaction_force[j][k],
+    ),
+    output(
+        "n",
+        Arity::PerJointVector,
+        OutputUnit::Fixed("N.m"),
+        |_, j, k| format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+        |s, j, k| s.reaction_moment[j][k],
+    ),
+    output(
+        "eps_joint",
+        Arity::PerJoint,
+        OutputUnit::Coordinate,
+        |m, j, _| format!("Lag eps_i = q*_i - q_i of {} behind its drive", joint_label(m, j)),
+        |s, j, _| s.joint_error(j),
+    ),
+    output(
+        "eps",
+        Arity::Single,
+        OutputUnit::Fixed("m"),
+        |_, _, _| "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it".into(),
+        |s, _, _| s.end_point_error(),
+    ),
+    output(
+        "x_E",
+        Arity::Vector,
+        OutputUnit::Fixed("m"),
+        |_, _, k| format!("Coordinate {} of the end point E in the base frame 0", k + 1),
+        |s, _, k| s.end_point[k],
+    ),
+    output("E_kin", Arity::Single, OutputUnit::Fixed("J"), |_, _, _| "Kinetic energy of the links".into(), |s, _, _| s.energy.kinetic),
+    output(
+        "E_pot",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Potential energy of gravity (zero at the origin of frame 0)".into(),
+        |s, _, _| s.energy.potential,
+    ),
+    output("E_spring", Arity::Single, OutputUnit::Fixed("J"), |_, _, _| "Elastic energy of the drive springs".into(), |s, _, _| s.energy.spring),
+    output(
+        "W_drive",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Work done by the drives since initialization".into(),
+        |s, _, _| s.energy.drive_work,
+    ),
+    output(
+        "Q_friction",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Heat produced by joint friction since initialization".into(),
+        |s, _, _| s.energy.friction_heat,
+    ),
+    output(
+        "Q_damping",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Heat produced by drive damping since initialization".into(),
+        |s, _, _| s.energy.damping_heat,
+    ),
+    output(
+        "n_substeps",
+        Arity::Single,
+        OutputUnit::None,
+        |_, _, _| "Newmark sub-steps accepted since initialization, including those that end at a stick-slip or clearance event".into(),
+        |s, _, _| s.steps.accepted as f64,
+    ),
+    output(
+        "n_rejected",
+        Arity::Single,
+        OutputUnit::None,
+        |_, _, _| "Sub-steps the error control rejected and retried shorter since initialization".into(),
+        |s, _, _| s.steps.rejected as f64,
+    ),
+    output(
+        "h_last",
+        Arity::Single,
+        OutputUnit::Fixed("s"),
+        |_, _, _| "Length of the last accepted sub-step (h_min where the error control needs the floor, h_max where the motion is smooth)".into(),
+        |s, _, _| s.steps.last_h,
+    ),
+];
+
+/// The output variables of `model`, kind by kind in [`OUTPUTS`] order; a
+/// per-joint vector kind runs over the joints, then the components.
+pub(super) fn outputs(b: &mut Builder, model: &Model) {
+    let n = model.nq();
+    for (index, kind) in OUTPUTS.iter().enumerate() {
+        let members: Vec<(usize, usize, String)> = match kind.arity {
+            Arity::Single => vec![(0, 0, kind.name.to_string())],
+            Arity::Vector => (0..3).map(|k| (0, k, format!("{}[{}]", kind.name, k + 1))).collect(),
+            Arity::PerJoint => (0..n).map(|j| (j, 0, format!("{}[{}]", kind.name, j + 1))).collect(),
+            Arity::PerJointVector => (0..n)
+                .flat_map(|j| (0..3).map(move |k| (j, k, format!("{}[{},{}]", kind.name, j + 1, k + 1))))
+                .collect(),
+        };
+        for (j, k, name) in members {
+            let units = joint_units(model.joints.get(j).map_or(JointKind::Revolute, |joint| joint.kind));
+            let unit = match kind.unit {
+                OutputUnit::None => None,
+                OutputUnit::Fixed(u) => Some(u),
+                OutputUnit::Coordinate => Some(units.coordinate),
+                OutputUnit::Rate => Some(units.rate),
+                OutputUnit::Acceleration => Some(units.acceleration),
+                OutputUnit::Force => Some(units.force),
+            };
+            let (variability, ty) = if kind.boolean {
+                (Variability::Discrete, Type::Boolean { start: None })
+            } else {
+                (Variability::Continuous, Type::Real { unit, min: None, max: None, start: None })
+            };
+            let quantity = Quantity::Output(Output { kind: index, joint: j, component: k });
+            b.push(name, (kind.description)(model, j, k), (Causality::Output, variability), ty, quantity);
+        }
+    }
+}
