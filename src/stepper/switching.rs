@@ -56,6 +56,7 @@ impl Simulator {
         // Where the friction loads change their piecewise form the iteration
         // may not settle; a shorter sub-step starts it closer to the solution.
         let mut halvings = 0;
+        let mut rejected = false;
         let factor = loop {
             if let Err(e) = self.solve(t0 + h) {
                 if !matches!(e, StepError::NotConverged { .. }) || halvings == MAX_HALVINGS {
@@ -70,8 +71,10 @@ impl Simulator {
             }
             let ratio = error_ratio(&self.model, &self.start, &self.state, h);
             let factor = optimal_factor(ratio);
-            if ratio > 1.0 && h > settings.h_min {
+            // At the floor (up to the rounding of t0 + h − t0) the step is taken.
+            if ratio > 1.0 && h > settings.h_min * (1.0 + 1e-9) {
                 self.state.steps.rejected += 1;
+                rejected = true;
                 h = (h * factor).max(settings.h_min);
                 continue;
             }
@@ -79,7 +82,10 @@ impl Simulator {
         };
         if let StepControl::Adaptive { shortened } = control {
             let steps = &mut self.state.steps;
-            let proposal = if shortened { steps.next_h.min(h * factor) } else { h * factor.min(GROWTH_MAX) };
+            // No growth right after a rejection: the error is near its limit
+            // here, and growing at once would be rejected again.
+            let growth = if rejected { 1.0 } else { GROWTH_MAX };
+            let proposal = if shortened { steps.next_h.min(h * factor) } else { h * factor.min(growth) };
             steps.next_h = proposal.clamp(settings.h_min, settings.h_max);
         }
         let Some(event) = self.earliest_event() else {
