@@ -1,6 +1,13 @@
-//! Cost of one `fmi2DoStep` of 1 ms (500 sub-steps of 2e-6 s) of the packaged
-//! FMU, called from Rust through the C ABI by the `fmi` crate (a real FMI
-//! master), averaged over the 2 s reference motion (stiction and slip phases).
+//! The packaged FMU called from Rust through the C ABI by the `fmi` crate (a
+//! real FMI master) over the 2 s reference motion (stiction and slip phases):
+//!
+//! - `fmi2DoStep_1ms_reference_motion`: one `fmi2DoStep` of 1 ms with fixed
+//!   sub-steps of 2e-6 s (500 per step), averaged over the motion;
+//! - `reference_motion_2s/{fixed_2e-6, error_control}`: the whole motion at
+//!   1 ms communication steps, `fmi2SetReal` of the inputs, `fmi2DoStep` and
+//!   `fmi2GetReal` of every Real output after each step, with fixed sub-steps
+//!   and with the default error control, measured in the same run.
+//!
 //! Build the FMU first: `bash scripts/build_fmu.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -8,7 +15,9 @@ use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::traits::FmiImport;
 use std::time::{Duration, Instant};
+use stick_slip_manipulator::fmi::description::{variables, Quantity, Type};
 use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::Model;
 
 const STEP: f64 = 1e-3;
 
@@ -31,15 +40,27 @@ fn do_step(c: &mut Criterion) {
         let (q, qd, qdd) = reference_inputs(t);
         [q, qd, qdd].concat()
     };
+    let vr = |name: &str| md.model_variable_by_name(name).unwrap().value_reference;
+    let steps_vrs = [vr("h_min"), vr("h_max")];
+    // Every Real output of the packaged (reference) model, from the FMU's own table.
+    let outputs: Vec<u32> = variables(&Model::reference_rrpr())
+        .into_iter()
+        .filter(|v| matches!((v.quantity, v.ty), (Quantity::Output(_), Type::Real { .. })))
+        .map(|v| v.value_reference)
+        .collect();
     let mut inst = import.instantiate_cs("bench", false, false).expect("fmi2Instantiate");
-    let start = |inst: &mut InstanceCS| {
+    // `fixed`: h_min = h_max = 2e-6 s; otherwise the model's error control.
+    let start = |inst: &mut InstanceCS, fixed: bool| {
         inst.reset().expect("fmi2Reset");
+        if fixed {
+            inst.set_real(&steps_vrs, &[2e-6, 2e-6]).expect("fixed sub-steps");
+        }
         inst.setup_experiment(None, 0.0, None).expect("fmi2SetupExperiment");
         inst.enter_initialization_mode().expect("fmi2EnterInitializationMode");
         inst.set_real(&inputs, &values_at(0.0)).expect("inputs");
         inst.exit_initialization_mode().expect("fmi2ExitInitializationMode");
     };
-    start(&mut inst);
+    start(&mut inst, true);
     let steps = (REFERENCE_RUN_TIME / STEP).round() as usize;
     let mut k = 0;
     let mut group = c.benchmark_group("fmu");
@@ -49,7 +70,7 @@ fn do_step(c: &mut Criterion) {
             let mut total = Duration::ZERO;
             for _ in 0..iters {
                 if k == steps {
-                    start(&mut inst);
+                    start(&mut inst, true);
                     k = 0;
                 }
                 let t = k as f64 * STEP;
@@ -63,6 +84,31 @@ fn do_step(c: &mut Criterion) {
             total
         })
     });
+    group.finish();
+
+    let mut group = c.benchmark_group("reference_motion_2s");
+    group.sample_size(10);
+    let mut values = vec![0.0; outputs.len()];
+    for (name, fixed) in [("fixed_2e-6", true), ("error_control", false)] {
+        group.bench_function(name, |b| {
+            b.iter_custom(|iters| {
+                let mut total = Duration::ZERO;
+                for _ in 0..iters {
+                    start(&mut inst, fixed);
+                    for k in 0..steps {
+                        let t = k as f64 * STEP;
+                        let inputs_now = values_at(t);
+                        let clock = Instant::now();
+                        inst.set_real(&inputs, &inputs_now).expect("fmi2SetReal");
+                        inst.do_step(t, STEP, true).expect("fmi2DoStep");
+                        inst.get_real(&outputs, &mut values).expect("fmi2GetReal");
+                        total += clock.elapsed();
+                    }
+                }
+                total
+            })
+        });
+    }
     group.finish();
 }
 
