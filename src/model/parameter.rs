@@ -116,6 +116,13 @@ impl Model {
         probe == *self
     }
 
+    /// True if a flexible drive has a clearance Δ > 0 (so that δ of (2.1)
+    /// can switch).
+    #[inline]
+    pub fn has_clearance(&self) -> bool {
+        self.joints.iter().any(|j| matches!(j.drive, Drive::Flexible { clearance, .. } if clearance > 0.0))
+    }
+
     /// True if joint `joint` (0-based) has parameter `p`.
     pub fn has_parameter(&self, p: Parameter, joint: usize) -> bool {
         self.parameter(p, joint).is_some()

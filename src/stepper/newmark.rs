@@ -124,7 +124,9 @@ impl NewmarkSolver {
     /// entry (the oldest buffer is reused for the next refined q̈).
     #[inline(always)]
     pub fn accepted(&mut self, dt: f64) {
-        self.qdd_history.rotate_right(1);
+        // rotate_right(1) by two swaps: the library's rotate is not inlined here.
+        self.qdd_history.swap(0, 2);
+        self.qdd_history.swap(1, 2);
         std::mem::swap(&mut self.qdd_history[0], &mut self.refined_qdd);
         self.previous_h = [dt, self.previous_h[0]];
         self.predictor_depth = (self.predictor_depth + 1).min(2);

@@ -146,6 +146,7 @@ impl Simulator {
         let n = self.model.nq();
         let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
         let (c_start, c_end) = (&self.start.clearance_margin[..n], &self.state.clearance_margin[..n]);
+        let clearances = self.model.has_clearance();
         let (mut best, mut best_theta) = (None, f64::INFINITY);
         for i in 0..n {
             let (g0, g1) = (start[i], end[i]);
@@ -154,6 +155,9 @@ impl Simulator {
                 if theta < best_theta {
                     (best, best_theta) = (Some(Event::Phase(i)), theta);
                 }
+            }
+            if !clearances {
+                continue;
             }
             let (c0, c1) = (c_start[i], c_end[i]);
             // Infinite for joints without clearance; a sign change otherwise.
