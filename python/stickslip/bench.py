@@ -1,0 +1,53 @@
+"""``stickslip bench``: variants per second of ``stickslip sweep`` on 1, 2, ... local workers.
+
+Every variant is the reference motion with the reference arm, its drive stiffness k[3]
+drawn within +-1 % (so that every variant costs about the same and no two are equal). For
+each worker count a fresh sweep into a temporary directory; the rate counts from the first
+task submitted to the last row received (cluster start-up, shown apart, excluded).
+Parallel efficiency = rate(N workers) / (N * rate(1 worker)).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from .fmu import DEFAULT_FMU
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--variants", type=int, default=40, help="variants per worker count (default 40)")
+    p.add_argument("--workers", default="1,2", help="comma-separated worker counts (default 1,2)")
+    p.add_argument("--stop-time", type=float, default=2.0, help="s (default 2.0, the reference run)")
+    p.add_argument("--communication-step", type=float, default=1e-3)
+    p.add_argument("--fmu", default=str(DEFAULT_FMU))
+
+
+def main(a: argparse.Namespace) -> int:
+    from . import spec as spec_module
+    from .sweep import run_sweep
+
+    text = (f'stop_time = {a.stop_time!r}\ncommunication_step = {a.communication_step!r}\nmotion = "reference"\n'
+            f'fmu = "{a.fmu}"\n[sample]\nn = {a.variants}\nseed = 1\n"k[3]" = {{ uniform = [0.99e6, 1.01e6] }}\n')
+    spec = spec_module.parse(text, "bench")
+    rates = {}
+    print(f"bench: {a.variants} variants of the {a.stop_time:g} s reference motion per worker count, "
+          f"{os.cpu_count()} cores", flush=True)
+    for n in (int(x) for x in a.workers.split(",")):
+        with tempfile.TemporaryDirectory(prefix="stickslip-bench-") as out:
+            wall = time.perf_counter()
+            stats = run_sweep(spec, Path(out), workers=n, progress_tty=False)
+            total = time.perf_counter() - wall
+        ok = int((stats["rows"]["status"] == "ok").sum())
+        rates[n] = stats["ran"] / stats["seconds"]
+        per = stats["rows"]["wall_s"].median()
+        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.2f} s per variant "
+              f"in the worker, {total - stats['seconds']:.1f} s cluster start-up and shut-down)", flush=True)
+    one = rates.get(1)
+    print("\n| workers | variants/s | parallel efficiency |\n|---|---|---|")
+    for n, r in rates.items():
+        print(f"| {n} | {r:.3f} | {r / (n * one):.2f} |" if one else f"| {n} | {r:.3f} | – |")
+    return 0
