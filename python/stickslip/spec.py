@@ -86,6 +86,7 @@ class Spec:
     sample: dict = field(default_factory=dict)  # name -> Distribution
     n: int = 0  # number of samples (0: no [sample])
     seed: int = 0
+    where: str = "SPEC"  # where it was read, for messages
 
     @property
     def steps(self) -> int:
@@ -196,7 +197,7 @@ def parse(text: str, where: str = "SPEC", overrides: dict | None = None) -> Spec
             raise SpecError(f"{where}: {both} both in [grid] and in [sample]")
     if not grid and not sample:
         raise SpecError(f"{where}: nothing to sweep: give a [grid] and/or a [sample] table")
-    return Spec(stop, step, motion, Path(fmu), grid or {}, sample or {}, n, seed)
+    return Spec(stop, step, motion, Path(fmu), grid or {}, sample or {}, n, seed, where)
 
 
 def _distribution(name: str, d, where: str) -> Distribution:
@@ -237,9 +238,10 @@ def _refusal(v) -> str | None:
     return None
 
 
-def check_against(spec: Spec, model_description, where: str = "SPEC") -> None:
+def check_against(spec: Spec, model_description) -> None:
     """Refuses names the FMU does not have or that are not tunable Real parameters, and grid
     values or uniform ranges outside a parameter's declared [min, max]."""
+    where = spec.where
     by_name = {v.name: v for v in model_description.modelVariables}
     for name in spec.parameters:
         v = by_name.get(name)
