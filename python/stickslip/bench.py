@@ -4,7 +4,11 @@ Every variant is the reference motion with the reference arm, its drive stiffnes
 drawn within +-1 % (so that every variant costs about the same and no two are equal). For
 each worker count a fresh sweep into a temporary directory; the rate counts from the first
 task submitted to the last row received (cluster start-up, shown apart, excluded).
-Parallel efficiency = rate(N workers) / (N * rate(1 worker)).
+Parallel efficiency = rate(N workers) / (N * rate(1 worker)). Two more columns tell
+scheduling overhead from CPU contention on a shared machine: the median wall time of a
+variant inside its worker (rises when other jobs take the cores), and the workers' busy
+fraction, the summed variant times over (N x the sweep's wall time) (falls when Dask leaves
+workers idle). The load average is printed before and after.
 """
 
 from __future__ import annotations
@@ -33,21 +37,30 @@ def main(a: argparse.Namespace) -> int:
     text = (f'stop_time = {a.stop_time!r}\ncommunication_step = {a.communication_step!r}\nmotion = "reference"\n'
             f'fmu = "{a.fmu}"\n[sample]\nn = {a.variants}\nseed = 1\n"k[3]" = {{ uniform = [0.99e6, 1.01e6] }}\n')
     spec = spec_module.parse(text, "bench")
-    rates = {}
+    rates, lines = {}, []
     print(f"bench: {a.variants} variants of the {a.stop_time:g} s reference motion per worker count, "
-          f"{os.cpu_count()} cores", flush=True)
+          f"{os.cpu_count()} cores, load average {_load()}", flush=True)
     for n in (int(x) for x in a.workers.split(",")):
         with tempfile.TemporaryDirectory(prefix="stickslip-bench-") as out:
             wall = time.perf_counter()
             stats = run_sweep(spec, Path(out), workers=n, progress_tty=False)
             total = time.perf_counter() - wall
-        ok = int((stats["rows"]["status"] == "ok").sum())
+        rows = stats["rows"]
+        ok = int((rows["status"] == "ok").sum())
         rates[n] = stats["ran"] / stats["seconds"]
-        per = stats["rows"]["wall_s"].median()
-        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.2f} s per variant "
-              f"in the worker, {total - stats['seconds']:.1f} s cluster start-up and shut-down)", flush=True)
+        per = rows["wall_s"].median()
+        busy = rows["wall_s"].sum() / (stats["workers"] * stats["seconds"])
+        lines.append((n, rates[n], per, busy))
+        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.3f} s per variant "
+              f"in the worker, workers busy {100 * busy:.0f} %, {total - stats['seconds']:.1f} s cluster start-up "
+              f"and shut-down), load average {_load()}", flush=True)
     one = rates.get(1)
-    print("\n| workers | variants/s | parallel efficiency |\n|---|---|---|")
-    for n, r in rates.items():
-        print(f"| {n} | {r:.3f} | {r / (n * one):.2f} |" if one else f"| {n} | {r:.3f} | – |")
+    print("\n| workers | variants/s | median s per variant in the worker | workers busy | parallel efficiency |"
+          "\n|---|---|---|---|---|")
+    for n, r, per, busy in lines:
+        print(f"| {n} | {r:.3f} | {per:.3f} | {100 * busy:.0f} % | " + (f"{r / (n * one):.2f} |" if one else "– |"))
     return 0
+
+
+def _load() -> str:
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
