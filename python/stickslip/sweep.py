@@ -31,6 +31,7 @@ from .variant import metric_names, plugin_name, run_variant
 
 FLUSH_SECONDS = 5.0  # a part file at least this often while rows come in
 FLUSH_ROWS = 500  # ... or when this many rows are waiting
+WORKER_WAIT = 120.0  # s to wait for the first worker of a cluster
 LOST = "lost"  # status of a variant whose task failed outside the FMU: run again on a rerun
 
 
@@ -255,7 +256,10 @@ def _execute(spec, store, variants, todo, data, digest, motion, scheduler, worke
     progress = None
     try:
         client.register_plugin(FmuPlugin(data, digest), name=plugin_name(digest))
-        client.wait_for_workers(1, timeout=120)
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT)
+        except TimeoutError:
+            raise SweepError(f"no worker joined the scheduler {scheduler} within {WORKER_WAIT:g} s") from None
         threads = sum(client.nthreads().values())
         stats["workers"] = threads
         window = 4 * threads + 8  # tasks queued at once: enough to keep every thread busy
@@ -304,6 +308,10 @@ def _execute(spec, store, variants, todo, data, digest, motion, scheduler, worke
 
 
 def _scheduler_lost(e: Exception) -> bool:
+    """A future that failed because the connection to the scheduler is gone (its futures are
+    cancelled then), not because of its task."""
+    from concurrent.futures import CancelledError
+
     from distributed.comm.core import CommClosedError
 
-    return isinstance(e, (CommClosedError, OSError)) and not isinstance(e, FileNotFoundError)
+    return isinstance(e, (CancelledError, CommClosedError, OSError))

@@ -219,3 +219,26 @@ def test_motion_csv_equals_reference_motion(tmp_path):
     q_only = TableMotion(t, {f"q_star[{i}]": [r[i] for r in rows] for i in range(1, 5)}, 4)
     q, qd, qdd = q_only(0.05, 1e-3)
     assert qd[2] == pytest.approx((rows[51][3] - rows[50][3]) / 1e-3, rel=1e-12) and qdd == [0.0] * 4
+
+
+def test_lost_scheduler_keeps_finished_rows(tmp_path):
+    """A cluster of its own; its scheduler is killed (SIGKILL) once 10 % of the variants are
+    done: the command ends with exit 1 and a message saying so, and results.parquet holds
+    the rows received before (all ok, none twice)."""
+    spec = write_spec(tmp_path / "lost.toml", '[grid]\n"k[3]" = [' + ", ".join(
+        f"{1e6 + 1e3 * j:.0f}" for j in range(30)) + "]\n", stop_time=0.3)
+    out = tmp_path / "out"
+    with loopback_cluster(tmp_path / "dask", workers=1) as c:
+        proc = sweep_process(spec, "--out", out, "--scheduler", c.address)
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if "%" in line and "done" in line:
+                break
+        c.scheduler.send_signal(signal.SIGKILL)
+        rest, _ = proc.communicate(timeout=120)
+        text = "".join(lines) + rest
+    assert proc.returncode == 1, text
+    assert "lost the Dask scheduler" in text and "run the same command again to continue" in text, text
+    rows = pd.read_parquet(out / "results.parquet")
+    assert 3 <= len(rows) < 30 and rows["run"].is_unique and (rows["status"] == "ok").all(), text
