@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 import time
 from datetime import datetime, timezone
@@ -150,8 +151,10 @@ class Progress:
         if self.tty:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, initial=already, unit="variant", file=stream, dynamic_ncols=True,
-                            smoothing=0.05)
+            # a terminal that reports no size (0 x 0) gets 100 x 24: tqdm would draw nothing
+            size = shutil.get_terminal_size((100, 24))
+            self.bar = tqdm(total=total, initial=already, unit="variant", file=stream, smoothing=0.05,
+                            ncols=size.columns, nrows=size.lines or 24)
 
     def update(self, status: str, running: int) -> None:
         self.done += 1

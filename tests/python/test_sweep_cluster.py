@@ -242,3 +242,36 @@ def test_lost_scheduler_keeps_finished_rows(tmp_path):
     assert "lost the Dask scheduler" in text and "run the same command again to continue" in text, text
     rows = pd.read_parquet(out / "results.parquet")
     assert 3 <= len(rows) < 30 and rows["run"].is_unique and (rows["status"] == "ok").all(), text
+
+
+def test_progress_bar_on_a_terminal_lines_otherwise(cluster, tmp_path):
+    """On a terminal (a pty that reports no size, as in CI) a tqdm bar with done/total, rate,
+    failed and running; through a pipe one line per 10 % with the rate and ETA."""
+    import os
+    import pty
+    import subprocess
+
+    from sweep_cluster import STICKSLIP
+
+    spec = write_spec(tmp_path / "bar.toml", '[grid]\n"mu_k[3]" = [0.1, 0.2, 0.25]\n"slider_a[3]" = [0.2, 0.4]\n',
+                      stop_time=0.02)
+    master, slave = pty.openpty()
+    p = subprocess.Popen([STICKSLIP, "sweep", str(spec), "--out", str(tmp_path / "tty"), "--scheduler",
+                          cluster.address], stdout=slave, stderr=slave, close_fds=True)
+    os.close(slave)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the pty closed
+            break
+        if not chunk:
+            break
+        out += chunk
+    assert p.wait() == 0
+    text = out.decode("utf-8", "replace")
+    assert "6/6 [" in text and "variant/s, failed=2, running=0]" in text, text
+    piped = sweep(spec, "--out", tmp_path / "piped", "--scheduler", cluster.address)
+    tenths = [line for line in piped.stderr.splitlines() if line.startswith("sweep: ") and " % (" in line]
+    assert tenths and tenths[-1].startswith("sweep: 100 % (6/6 done, 2 not ok"), piped.stderr
+    assert all("variants/s, ETA" in line for line in tenths)
