@@ -4,11 +4,12 @@ Every variant is the reference motion with the reference arm, its drive stiffnes
 drawn within +-1 % (so that every variant costs about the same and no two are equal). For
 each worker count a fresh sweep into a temporary directory; the rate counts from the first
 task submitted to the last row received (cluster start-up, shown apart, excluded).
-Parallel efficiency = rate(N workers) / (N * rate(1 worker)). Two more columns tell
-scheduling overhead from CPU contention on a shared machine: the median wall time of a
-variant inside its worker (rises when other jobs take the cores), and the workers' busy
-fraction, the summed variant times over (N x the sweep's wall time) (falls when Dask leaves
-workers idle). The load average is printed before and after.
+Parallel efficiency = rate(N workers) / (N * rate(1 worker)). More columns tell scheduling
+overhead from CPU contention on a shared machine: the median wall and CPU time of a
+variant inside its worker (the wall time rises above the CPU time when other jobs hold the
+cores), and the workers' busy fraction, the summed variant wall times over (N x the
+sweep's wall time) (falls when Dask leaves workers idle). The load average is printed
+before and after.
 """
 
 from __future__ import annotations
@@ -48,17 +49,18 @@ def main(a: argparse.Namespace) -> int:
         rows = stats["rows"]
         ok = int((rows["status"] == "ok").sum())
         rates[n] = stats["ran"] / stats["seconds"]
-        per = rows["wall_s"].median()
+        per, cpu = rows["wall_s"].median(), rows["cpu_s"].median()
         busy = rows["wall_s"].sum() / (stats["workers"] * stats["seconds"])
-        lines.append((n, rates[n], per, busy))
-        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.3f} s per variant "
-              f"in the worker, workers busy {100 * busy:.0f} %, {total - stats['seconds']:.1f} s cluster start-up "
-              f"and shut-down), load average {_load()}", flush=True)
+        lines.append((n, rates[n], per, cpu, busy))
+        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.3f} s wall, {cpu:.3f} s CPU "
+              f"per variant in the worker, workers busy {100 * busy:.0f} %, {total - stats['seconds']:.1f} s cluster "
+              f"start-up and shut-down), load average {_load()}", flush=True)
     one = rates.get(1)
-    print("\n| workers | variants/s | median s per variant in the worker | workers busy | parallel efficiency |"
-          "\n|---|---|---|---|---|")
-    for n, r, per, busy in lines:
-        print(f"| {n} | {r:.3f} | {per:.3f} | {100 * busy:.0f} % | " + (f"{r / (n * one):.2f} |" if one else "– |"))
+    print("\n| workers | variants/s | per variant in the worker: wall, CPU (median) | workers busy "
+          "| parallel efficiency |\n|---|---|---|---|---|")
+    for n, r, per, cpu, busy in lines:
+        print(f"| {n} | {r:.3f} | {per:.3f} s, {cpu:.3f} s | {100 * busy:.0f} % | "
+              + (f"{r / (n * one):.2f} |" if one else "– |"))
     return 0
 
 

@@ -204,7 +204,7 @@ def prepare(spec: Spec, out) -> tuple:
     missing = [n for n in ("eps", "Q_friction", "W_drive") if n not in outputs]
     if missing:
         raise SpecError(f"fmu {spec.fmu}: has no output(s) {missing} for the metrics")
-    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "t_end"] + metric_names(outputs)
+    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metric_names(outputs)
                + ["worker", "finished"])
     return data, digest, motion, ResultStore(Path(out), spec, digest, columns)
 

@@ -82,19 +82,20 @@ def _prepared(unzipdir: str) -> _Prepared:
 def run_variant(fmu_digest: str, run: int, parameters: dict, stop_time: float, step: float, motion,
                 timeout: float | None = None, fmu_data: bytes | None = None) -> dict:
     """The row of one variant: ``run``, the parameters, ``status``, ``message``, ``wall_s``,
-    ``t_end``, ``worker`` and the metrics. ``motion(t, step)`` gives the inputs; ``fmu_data``
+    ``cpu_s`` (the worker process's CPU time during the variant), ``t_end``, ``worker`` and
+    the metrics. ``motion(t, step)`` gives the inputs; ``fmu_data``
     (the FMU's bytes) is needed only where the FMU has not been unpacked in this process."""
     from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave
 
-    wall = time.perf_counter()
+    wall, cpu = time.perf_counter(), time.process_time()
     row = {"run": run, **parameters, "status": "ok", "message": "", "t_end": 0.0,
            "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         p = _prepared(unpacked(fmu_data, fmu_digest) if fmu_data is not None else _unpacked_here(fmu_digest))
     except Exception as e:  # noqa: BLE001 -- a row, never a crash
         return row | {"status": "error", "message": f"FMU not available here: {type(e).__name__}: {e}",
-                      "wall_s": time.perf_counter() - wall}
+                      "wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu}
     row.update(dict.fromkeys(p.metrics, float("nan")))
     log = LogCapture()
     slave = FMU2Slave(guid=p.md.guid, unzipDirectory=p.unzipdir, modelIdentifier=p.md.coSimulation.modelIdentifier,
@@ -146,6 +147,7 @@ def run_variant(fmu_digest: str, run: int, parameters: dict, stop_time: float, s
     if row["status"] == "ok" and log.records:
         row["message"] = _reason(log, "")
     row["wall_s"] = time.perf_counter() - wall
+    row["cpu_s"] = time.process_time() - cpu
     return row
 
 
