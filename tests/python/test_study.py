@@ -1,5 +1,5 @@
 """The source study's claims (section 4, Figs. 10-14) hold on the reference manipulator,
-run through the FMU with fmpy by python/study.py.
+run through the FMU with fmpy by `stickslip study` (python/stickslip/study.py).
 
 Each claim is an assertion on numbers of the study's cases (shared/reference-manipulator.md):
 step size, friction coefficient, friction characteristic, clearance, slider length. Every
@@ -20,15 +20,15 @@ reference run is the step case's 2e-6 s, the friction case's 0.2, the constant
 characteristic and the clearance-free variant.
 """
 
+import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from helpers import ROOT, require_fmu
+from helpers import require_fmu
 
-import study  # noqa: E402  (python/ is on sys.path through helpers)
+from stickslip import study
 
 CI = {"h_max": 2e-5, "interval": 1e-3}
 FULL = {"h_max": 2e-6, "interval": 1e-4}
@@ -146,11 +146,11 @@ def test_stick_phases_rebuilt_from_counters():
 
 
 def test_command_writes_csv_figure_and_summary(tmp_path):
-    """`python python/study.py --cases friction ...` writes friction.csv (time + the variants'
+    """`stickslip study --cases friction ...` writes friction.csv (time + the variants'
     columns), friction.png and the summary (JSON and markdown), with a progress line per case."""
     out = tmp_path / "study"
     p = subprocess.run(
-        [sys.executable, str(ROOT / "python" / "study.py"), "--out", str(out), "--cases", "friction",
+        [shutil.which("stickslip"), "study", "--out", str(out), "--cases", "friction",
          "--h-max", "5e-5", "--interval", "1e-3", "--end", "0.3", "--fmu", str(require_fmu())],
         capture_output=True, text=True, check=True)
     assert "[1/1] friction" in p.stdout

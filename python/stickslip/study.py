@@ -2,7 +2,7 @@
 
 Five cases (shared/reference-manipulator.md, "The study cases"), each a set of
 variants of the reference motion run through the FMU with fmpy
-(:func:`fmu_runner.run`), the way a user does:
+(:func:`stickslip.simulate.run`), the way a user does:
 
 =============== ============================================== =====================
 case            variants                                       quantity
@@ -30,7 +30,7 @@ to one communication interval (1e-4 s by default).
 
 Command line (the main job runs it after the reference run)::
 
-    python python/study.py [--out results/study] [--h-max 2e-6] [--cases step,friction,...]
+    stickslip study [--out results/study] [--h-max 2e-6] [--cases step,friction,...]
         [--end 2.0] [--interval 1e-4] [--fmu FILE]
 """
 
@@ -47,8 +47,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from fmu_runner import DEFAULT_FMU, MOTION_TIME, ROOT, RUN_TIME, run  # noqa: E402
+from .fmu import DEFAULT_FMU, ROOT
+from .motion import MOTION_TIME, RUN_TIME
+from .simulate import run
 
 FLEXIBLE = (1, 3)  # joints with a flexible drive and friction
 DEFAULT_H_MAX = 2e-6  # s, the study's converged step
@@ -332,7 +333,7 @@ def run_case(case: Case, end: float = RUN_TIME, interval: float = DEFAULT_INTERV
     runs, walls = [], []
     for k, v in enumerate(case.variants):
         label = f"  {case.name} {k + 1}/{len(case.variants)} ({v.label})"
-        # fmu_runner's running line rewrites itself with \r: only for a terminal
+        # simulate.run's running line rewrites itself with \r: only for a terminal
         r, wall = simulate(v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None)
         if progress:
             print(f"{label}: " + (f"{wall:.1f} s wall" if wall else "reused") + f", max ε {np.max(r['eps']):.3e} m, "
@@ -450,20 +451,22 @@ def summary_markdown(results: dict, settings: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description="The source study's five cases through the FMU (fmpy).")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default=str(ROOT / "results" / "study"))
     p.add_argument("--h-max", type=float, default=DEFAULT_H_MAX, help="sub-step of every case (default 2e-6 s)")
     p.add_argument("--cases", default=",".join(study_cases()), help="comma-separated subset")
     p.add_argument("--end", type=float, default=RUN_TIME)
     p.add_argument("--interval", type=float, default=DEFAULT_INTERVAL, help="communication interval (s)")
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
-    a = p.parse_args(argv)
+
+
+def main(a: argparse.Namespace) -> int:
+    """``stickslip study``: the five cases, their CSVs, figures and summary."""
     all_cases = study_cases(a.h_max)
     chosen = [c.strip() for c in a.cases.split(",") if c.strip()]
     unknown = [c for c in chosen if c not in all_cases]
     if unknown:
-        p.error(f"unknown case(s) {unknown}; choose from {list(all_cases)}")
+        raise SystemExit(f"stickslip study: unknown case(s) {unknown}; choose from {list(all_cases)}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     settings = {"h_max": a.h_max, "interval": a.interval, "end": a.end, "fmu": a.fmu}
@@ -500,6 +503,3 @@ def main(argv=None) -> int:
           f"summary.json, summary.md" + (f"; claims NOT holding: {failed}" if failed else "; every claim holds"))
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())
