@@ -275,3 +275,17 @@ def test_progress_bar_on_a_terminal_lines_otherwise(cluster, tmp_path):
     tenths = [line for line in piped.stderr.splitlines() if line.startswith("sweep: ") and " % (" in line]
     assert tenths and tenths[-1].startswith("sweep: 100 % (6/6 done, 2 not ok"), piped.stderr
     assert all("variants/s, ETA" in line for line in tenths)
+
+
+def test_timeout_is_a_row(cluster, tmp_path):
+    """--timeout stops a variant that runs too long: a row with status `timeout`, the time it
+    reached, the metrics up to there; the others of the sweep are ok."""
+    spec = write_spec(tmp_path / "slow.toml", '[grid]\n"mu_k[3]" = [0.15, 0.2]\n', stop_time=0.5)
+    out = tmp_path / "out"
+    p = sweep(spec, "--out", out, "--scheduler", cluster.address, "--timeout", "0.02")
+    assert p.returncode == 0, p.stdout + p.stderr
+    rows = pd.read_parquet(out / "results.parquet")
+    assert list(rows["status"]) == ["timeout", "timeout"], rows
+    for _, r in rows.iterrows():
+        assert 0 < r["t_end"] < 0.5 and "after 0.02 s wall (--timeout)" in r["message"]
+        assert r["max_eps"] > 0 and r["n_stick[3]"] >= 1
