@@ -4,7 +4,10 @@
   per content (sha256), removed at exit; a Dask worker unpacks the bytes sent to it here.
 * :class:`LogCapture`: fmi2CallbackFunctions whose logger keeps the FMU's messages, so a
   discarded or refused step can report the FMU's reason.
-* :func:`set_value`: a parameter set by its modelDescription name.
+* :func:`set_value`: a parameter set by its modelDescription name;
+* :func:`initialize` and :func:`communication_points`: an instance set up with its parameters
+  and stepped over a motion, the same way by every command (inputs set at t_k = k * step,
+  then ``doStep(t_k, step)``).
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ import shutil
 import tempfile
 from ctypes import byref
 from pathlib import Path
+
+from .motion import input_names
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
@@ -55,6 +60,43 @@ def set_value(slave, variable, value) -> None:
         slave.setInteger(vr, [int(value)])
     else:
         slave.setReal(vr, [float(value)])
+
+
+def input_references(md) -> list:
+    """Value references of q_star[1..n], qd_star[1..n], qdd_star[1..n]: the order of a motion's values."""
+    by_name = {v.name: v for v in md.modelVariables}
+    n = sum(1 for v in md.modelVariables if v.causality == "input" and v.name.startswith("q_star["))
+    return [by_name[name].valueReference for name in input_names(n)]
+
+
+def _input_values(inputs) -> list:
+    q, qd, qdd = inputs
+    return [float(x) for x in (*q, *qd, *qdd)]
+
+
+def initialize(slave, md, parameters: dict, input_vrs: list, motion, step: float) -> None:
+    """setupExperiment at t = 0, the parameters set by name, initialization with the motion's
+    inputs at t = 0. An unknown name raises ValueError; what the FMU refuses raises fmpy's
+    FMICallException."""
+    by_name = {v.name: v for v in md.modelVariables}
+    slave.setupExperiment(startTime=0.0)
+    for name, value in parameters.items():
+        if name not in by_name:
+            raise ValueError(f"{name!r} is not a variable of the FMU")
+        set_value(slave, by_name[name], value)
+    slave.enterInitializationMode()
+    slave.setReal(input_vrs, _input_values(motion(0.0, step)))
+    slave.exitInitializationMode()
+
+
+def communication_points(slave, input_vrs: list, motion, end: float, step: float):
+    """Steps an initialized instance from 0 to ``end``: at t_k = k * step the motion's inputs,
+    then ``doStep(t_k, step)``; yields (k + 1, t_{k+1}) after each step."""
+    for k in range(round(end / step)):
+        t = k * step
+        slave.setReal(input_vrs, _input_values(motion(t, step)))
+        slave.doStep(currentCommunicationPoint=t, communicationStepSize=step)
+        yield k + 1, (k + 1) * step
 
 
 _LOG_SINKS = {}  # componentEnvironment id -> LogCapture

@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .fmu import DEFAULT_FMU, ROOT, set_value
+from .fmu import DEFAULT_FMU, ROOT, communication_points, initialize, input_references
 from .motion import RUN_TIME, reference_inputs
 
 
@@ -40,9 +40,7 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
 
     fmu = str(fmu)
     md = read_model_description(fmu)
-    by_name = {v.name: v for v in md.modelVariables}
-    n = sum(1 for v in md.modelVariables if v.name.startswith("q_star["))
-    in_vrs = [by_name[f"{g}[{i}]"].valueReference for g in ("q_star", "qd_star", "qdd_star") for i in range(1, n + 1)]
+    in_vrs = input_references(md)
     outputs = [v for v in md.modelVariables if v.causality == "output"]
     real_out = [v for v in outputs if v.type == "Real"]
     bool_out = [v for v in outputs if v.type == "Boolean"]
@@ -57,30 +55,16 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
         # One tuple per communication point; split into columns at the end.
         rows.append((t, *slave.getReal(real_vrs), *(1 if x else 0 for x in slave.getBoolean(bool_vrs))))
 
-    def set_inputs(t):
-        q, qd, qdd = inputs(t, interval)
-        slave.setReal(in_vrs, [float(x) for x in (*q, *qd, *qdd)])
-
     try:
         slave.instantiate()
-        slave.setupExperiment(startTime=0.0)
-        for name, value in (parameters or {}).items():
-            if name not in by_name:
-                raise ValueError(f"{name!r} is not a variable of {fmu}")
-            set_value(slave, by_name[name], value)
-        slave.enterInitializationMode()
-        set_inputs(0.0)
-        slave.exitInitializationMode()
+        initialize(slave, md, parameters or {}, in_vrs, inputs, interval)
         record(0.0)
         steps = round(end / interval)
         wall = time.perf_counter()
-        for k in range(steps):
-            t = k * interval
-            set_inputs(t)
-            slave.doStep(currentCommunicationPoint=t, communicationStepSize=interval)
-            record((k + 1) * interval)
-            if progress and (k + 1) % max(1, steps // 10) == 0:
-                print(f"\r{progress}: t = {(k + 1) * interval:.3f} s of {end} s "
+        for k, t in communication_points(slave, in_vrs, inputs, end, interval):
+            record(t)
+            if progress and k % max(1, steps // 10) == 0:
+                print(f"\r{progress}: t = {t:.3f} s of {end} s "
                       f"({time.perf_counter() - wall:.1f} s wall)", end="", file=sys.stderr, flush=True)
         if progress:
             print(file=sys.stderr)

@@ -76,9 +76,11 @@ class ResultStore:
                                  if old.get("spec", {}).get(k) != self.record["spec"].get(k))
                 raise SweepError(f"{self.out} holds results of another SPEC (changed: {', '.join(changed)}); "
                                  f"use another --out, or remove {self.out} to start over")
-        self.out.mkdir(parents=True, exist_ok=True)
-        self.parts.mkdir(exist_ok=True)
-        meta.write_text(json.dumps(self.record, indent=1), encoding="utf-8")
+        try:
+            self.parts.mkdir(parents=True, exist_ok=True)
+            meta.write_text(json.dumps(self.record, indent=1), encoding="utf-8")
+        except OSError as e:
+            raise SweepError(f"cannot write the results into {self.out}: {e.strerror}") from None
         types = {"run": pa.int64(), "status": pa.string(), "message": pa.string(), "worker": pa.string(),
                  "finished": pa.timestamp("us", tz="UTC")}
         self.schema = pa.schema([(c, types.get(c, pa.float64())) for c in columns])
@@ -218,7 +220,7 @@ def _client(scheduler: str | None, workers: int | None):
     if scheduler:
         try:
             return Client(scheduler, timeout="20s"), None
-        except OSError as e:
+        except (OSError, ValueError) as e:
             raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
     cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                            host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)

@@ -33,7 +33,7 @@ import re
 import socket
 import time
 
-from .fmu import LogCapture, set_value, unpacked
+from .fmu import LogCapture, communication_points, initialize, input_references, unpacked
 
 STATUS_NAMES = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
@@ -62,8 +62,7 @@ class _Prepared:
         self.by_name = {v.name: v for v in self.md.modelVariables}
         outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
         self.joints = _joints(tuple(outputs))
-        n = sum(1 for v in self.md.modelVariables if v.causality == "input" and v.name.startswith("q_star["))
-        self.inputs = [self.vr(f"{g}[{i}]") for g in ("q_star", "qd_star", "qdd_star") for i in range(1, n + 1)]
+        self.inputs = input_references(self.md)
         self.sampled = [self.vr("eps")] + [self.vr(f"N_normal[{i}]") for i in self.joints]
         self.final_names = ([f"n_stick[{i}]" for i in self.joints] + [f"t_stick[{i}]" for i in self.joints]
                             + ["Q_friction", "W_drive"])
@@ -104,28 +103,21 @@ def run_variant(fmu_digest: str, run: int, parameters: dict, stop_time: float, s
     try:
         slave.instantiate(callbacks=log.callbacks)
         try:
-            slave.setupExperiment(startTime=0.0)
-            for name, value in parameters.items():
-                set_value(slave, p.by_name[name], value)
-            slave.enterInitializationMode()
-            slave.setReal(p.inputs, _flat(motion(0.0, step)))
-            slave.exitInitializationMode()
+            initialize(slave, p.md, parameters, p.inputs, motion, step)
         except FMICallException as e:
             row["status"] = "refused"
             row["message"] = _reason(log, str(e))
             raise _Refused from None
         try:
             sampled = [list(slave.getReal(p.sampled))]
-            for k in range(round(stop_time / step)):
-                t = k * step
-                if timeout is not None and time.perf_counter() - wall > timeout:
+            steps = round(stop_time / step)
+            for k, t in communication_points(slave, p.inputs, motion, stop_time, step):
+                sampled.append(list(slave.getReal(p.sampled)))
+                row["t_end"] = t
+                if timeout is not None and k < steps and time.perf_counter() - wall > timeout:
                     row["status"] = "timeout"
                     row["message"] = f"stopped at t = {t:g} s after {timeout:g} s wall (--timeout)"
                     break
-                slave.setReal(p.inputs, _flat(motion(t, step)))
-                slave.doStep(currentCommunicationPoint=t, communicationStepSize=step)
-                sampled.append(list(slave.getReal(p.sampled)))
-                row["t_end"] = (k + 1) * step
         except FMICallException as e:
             row["status"] = "discard" if e.status == 2 else "error"
             row["message"] = _reason(log, f"{e} at t = {row['t_end']:g} s")
@@ -162,11 +154,6 @@ def _metrics(row: dict, p: _Prepared, sampled: list, final: list) -> None:
     for j, i in enumerate(p.joints, 1):
         row[f"max_N_normal[{i}]"] = max(s[j] for s in sampled)
     row.update(zip(p.final_names, final))
-
-
-def _flat(inputs) -> list:
-    q, qd, qdd = inputs
-    return [float(x) for x in (*q, *qd, *qdd)]
 
 
 def _reason(log: LogCapture, fallback: str) -> str:
