@@ -7,7 +7,7 @@
 #   3. stickslip simulate --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
 #   5. stickslip study --out results/study   (the source study's five cases, docs/study.md)
-#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 150 samples)
+#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 100 samples)
 #   7. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
@@ -44,9 +44,9 @@ python scripts/plot_reference.py "$CSV" "$RESULTS_DIR"
 banner "stickslip study: the source study's five cases through the FMU -> $RESULTS_DIR/study"
 stickslip study --out "$RESULTS_DIR/study"
 
-# The Monte Carlo example has 1000 samples of the 2 s motion (about 8 min on 2
+# The Monte Carlo example has 1000 samples of the 2 s motion (6.5 min on 2
 # busy cores); its first MC_SAMPLES draws keep this stage under two minutes.
-MC_SAMPLES="${MC_SAMPLES:-150}"
+MC_SAMPLES="${MC_SAMPLES:-100}"
 banner "stickslip sweep examples/monte_carlo.toml (first $MC_SAMPLES samples) -> $RESULTS_DIR/monte_carlo"
 rm -rf "$RESULTS_DIR/monte_carlo"
 stickslip sweep examples/monte_carlo.toml --out "$RESULTS_DIR/monte_carlo" --samples "$MC_SAMPLES"

@@ -294,4 +294,4 @@ def test_timeout_is_a_row(cluster, tmp_path):
     assert list(rows["status"]) == ["timeout", "timeout"], rows
     for _, r in rows.iterrows():
         assert 0 < r["t_end"] < 0.5 and "after 0.02 s wall (--timeout)" in r["message"]
-        assert r["max_eps"] > 0 and r["n_stick[3]"] >= 1
+        assert r["max_eps"] >= 0 and r["n_stick[3]"] >= 1  # metrics over [0, t_end] (the start is stuck)
