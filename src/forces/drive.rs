@@ -32,8 +32,8 @@ pub fn drive_force(stiffness: f64, damping: f64, clearance: f64, q_star: f64, qd
 /// δ of eq. (2.1): true when the drive's deflection `e` = q* − q has taken up
 /// the clearance Δ, |e| ≥ Δ.
 #[inline(always)]
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // "not inside": a NaN deflection must propagate into F^d
 pub fn clearance_taken_up(clearance: f64, e: f64) -> bool {
-    // Written as "not inside" so that a NaN deflection propagates into F^d.
     !(e.abs() < clearance)
 }
 
