@@ -7,7 +7,7 @@
 #   3. stickslip simulate --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
 #   5. stickslip study --out results/study   (the source study's five cases, docs/study.md)
-#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 100 samples)
+#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 500 samples)
 #   7. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
