@@ -11,6 +11,9 @@
 #     requirements.txt installed; it is re-installed only when requirements.txt
 #     changes (sha256 stamp kept in the venv). Its bin/ is first on PATH, so
 #     `python` and `pytest` are the venv's.
+#   * the package `stickslip` of pyproject.toml (python/stickslip, command
+#     `stickslip`) is installed into the venv in editable mode; re-installed
+#     only when pyproject.toml changes (stamp kept in the venv).
 #   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
 #
 # Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
@@ -102,6 +105,17 @@ _stickslip_ensure_venv() {
             --no-input -r "$req" </dev/null >&2 || {
             _stickslip_log "ERROR: pip install -r requirements.txt failed"; return 1; }
         printf '%s\n' "$want" >"$venv/.requirements.sha256"
+    fi
+    [ -f "$root/pyproject.toml" ] || return 0
+    want="$(sha256sum "$root/pyproject.toml" | cut -d' ' -f1) $root"
+    have=""
+    [ -f "$venv/.package.sha256" ] && have=$(cat "$venv/.package.sha256")
+    if [ "$want" != "$have" ] || [ ! -x "$venv/bin/stickslip" ]; then
+        _stickslip_log "installing the stickslip package (pip install -e .) into $venv..."
+        PIP_DISABLE_PIP_VERSION_CHECK=1 "$venv/bin/python" -m pip install -q --no-input \
+            --no-build-isolation --no-deps -e "$root" </dev/null >&2 || {
+            _stickslip_log "ERROR: pip install -e $root failed"; return 1; }
+        printf '%s\n' "$want" >"$venv/.package.sha256"
     fi
     return 0
 }

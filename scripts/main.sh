@@ -4,13 +4,14 @@
 #
 #   1. cargo build --release
 #   2. FMU packaging hook: scripts/build_fmu.sh, if it exists
-#   3. python python/fmu_runner.py --out results/reference.csv  (the FMU through fmpy)
+#   3. stickslip simulate --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
-#   5. python python/study.py --out results/study   (the source study's five cases, docs/study.md)
-#   6. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
+#   5. stickslip study --out results/study   (the source study's five cases, docs/study.md)
+#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 150 samples)
+#   7. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
-# passed to python/fmu_runner.py (e.g. --set mu_k[3]=0.1).
+# passed to `stickslip simulate` (e.g. --set mu_k[3]=0.1).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -34,14 +35,21 @@ if [ -f scripts/build_fmu.sh ]; then
 fi
 
 banner "reference motion through the FMU (fmpy) -> $CSV"
-python python/fmu_runner.py --out "$CSV" "$@"
+stickslip simulate --out "$CSV" "$@"
 [ -s "$CSV" ] || { echo "main.sh: the FMU run wrote no $CSV" >&2; exit 1; }
 
 banner "plot_reference.py"
 python scripts/plot_reference.py "$CSV" "$RESULTS_DIR"
 
-banner "study.py: the source study's five cases through the FMU -> $RESULTS_DIR/study"
-python python/study.py --out "$RESULTS_DIR/study"
+banner "stickslip study: the source study's five cases through the FMU -> $RESULTS_DIR/study"
+stickslip study --out "$RESULTS_DIR/study"
+
+# The Monte Carlo example has 1000 samples of the 2 s motion (about 8 min on 2
+# busy cores); its first MC_SAMPLES draws keep this stage under two minutes.
+MC_SAMPLES="${MC_SAMPLES:-150}"
+banner "stickslip sweep examples/monte_carlo.toml (first $MC_SAMPLES samples) -> $RESULTS_DIR/monte_carlo"
+rm -rf "$RESULTS_DIR/monte_carlo"
+stickslip sweep examples/monte_carlo.toml --out "$RESULTS_DIR/monte_carlo" --samples "$MC_SAMPLES"
 
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python -m slow --runslow"

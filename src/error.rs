@@ -63,6 +63,31 @@ pub enum StepError {
         /// The rejected value.
         value: f64,
     },
+    /// An input lies outside its admissible range (see
+    /// [`INPUT_RANGES`](crate::stepper::INPUT_RANGES)).
+    #[error("input `{field}[{joint}]` = {value:e} lies outside its range {range}")]
+    InputOutOfRange {
+        /// Which input (`q_star`, `qd_star`, `qdd_star`).
+        field: &'static str,
+        /// Joint number, 1-based.
+        joint: usize,
+        /// The rejected value.
+        value: f64,
+        /// Its admissible range, as text.
+        range: String,
+    },
+    /// A reported quantity became NaN or infinite (an overflow of what the
+    /// inputs and parameters produce).
+    #[error("{quantity} is not finite ({value}) at t = {time} s; likely cause: a parameter or input far outside the physical range of the model")]
+    NonFiniteOutput {
+        /// The quantity, by name (an FMU output variable name, or the state
+        /// field and joint).
+        quantity: String,
+        /// Its value.
+        value: f64,
+        /// Time of the end of the interval, s.
+        time: f64,
+    },
     /// The interval length is not a positive finite number.
     #[error("communication interval {interval} s is not positive and finite")]
     InvalidInterval {

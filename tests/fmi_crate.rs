@@ -27,16 +27,16 @@ use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
 const STEP: f64 = 1e-3;
 const STEPS: usize = 100;
 
-/// The FMU under test, or None (with the reason printed) to skip. Packed once per
-/// test process.
-fn fmu_file() -> Option<PathBuf> {
-    static FMU: OnceLock<Option<PathBuf>> = OnceLock::new();
-    FMU.get_or_init(find_or_pack_fmu).clone()
+/// The FMU under test, packed once per test process. A test without an FMU
+/// fails (it must not pass without checking anything).
+fn fmu_file() -> PathBuf {
+    static FMU: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    FMU.get_or_init(find_or_pack_fmu).clone().unwrap_or_else(|reason| panic!("{reason}"))
 }
 
-fn find_or_pack_fmu() -> Option<PathBuf> {
+fn find_or_pack_fmu() -> Result<PathBuf, String> {
     if let Ok(p) = std::env::var("STICKSLIP_FMU") {
-        return Some(PathBuf::from(p));
+        return Ok(PathBuf::from(p));
     }
     // The cdylib of this build: rustc writes it to deps/ together with the rlib the
     // test links (cdylib names carry no hash; `cargo build` also copies it one level up).
@@ -56,18 +56,17 @@ fn find_or_pack_fmu() -> Option<PathBuf> {
             .expect("run package_fmu");
         assert!(status.success(), "package_fmu --lib {} --out {} failed", lib.display(), out.display());
         eprintln!("fmi_crate: packed {} from {}", out.display(), lib.display());
-        return Some(out);
+        return Ok(out);
     }
     let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fmu/StickSlipManipulator.fmu");
     if built.is_file() {
-        return Some(built);
+        return Ok(built);
     }
-    eprintln!(
-        "SKIPPED: no FMU: no libstick_slip_manipulator.so in {} and no {}; build it with `bash scripts/build_fmu.sh`",
+    Err(format!(
+        "no FMU to test: no libstick_slip_manipulator.so in {} and no {}; build it with `bash scripts/build_fmu.sh`",
         dir.display(),
         built.display()
-    );
-    None
+    ))
 }
 
 /// The reference motion's inputs at t: q*, q̇*, q̈* of the 4 joints.
@@ -175,7 +174,7 @@ fn deviation(a: &[f64], b: &[f64]) -> f64 {
 /// and the Boolean stick[i], after initialization and after each step.
 #[test]
 fn fmi_crate_runs_the_fmu_like_the_engine() {
-    let Some(path) = fmu_file() else { return };
+    let path = fmu_file();
     let import: Fmi2Import = fmi::import::from_path(&path).expect("the fmi crate imports the FMU");
     let md = import.model_description();
     assert_eq!(md.fmi_version, "2.0");
@@ -241,7 +240,7 @@ fn fmi_crate_runs_the_fmu_like_the_engine() {
 /// deserialized into a second instance gives the same next 20 steps, bit for bit.
 #[test]
 fn fmi_crate_state_round_trip() {
-    let Some(path) = fmu_file() else { return };
+    let path = fmu_file();
     let import: Fmi2Import = fmi::import::from_path(&path).expect("the fmi crate imports the FMU");
     let v = vrs(&import);
     let q3 = vr(&import, "q[3]");

@@ -134,3 +134,40 @@ fn a_chain_of_24_joints_steps_and_balances_energy() {
     let residual = (e.balance() - b0).abs();
     assert!(residual < 1e-6 * (e.drive_work.abs() + e.friction_heat + e.kinetic), "energy residual {residual} J");
 }
+
+/// A state in which a reported value is not finite names it; a step whose end
+/// state fails the check is refused with that name and leaves the state at
+/// the start of the interval (the FMU checks its outputs by name this way).
+#[test]
+fn a_non_finite_reported_value_is_an_error_and_the_state_is_kept() {
+    let mut sim = running_reference();
+    assert_eq!(sim.state().check_finite(), Ok(()));
+    let mut poisoned = sim.state().clone();
+    poisoned.normal_load[0] = f64::INFINITY;
+    assert_eq!(poisoned.check_finite(), Err(("normal_load[1]".to_string(), f64::INFINITY)));
+    let mut poisoned = sim.state().clone();
+    poisoned.reaction_moment[2].y = f64::NAN;
+    assert_eq!(poisoned.check_finite().unwrap_err().0, "reaction_moment[3,2]");
+
+    let before = sim.state().clone();
+    let inputs = DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A };
+    let e = sim.advance_checked(&inputs, 1e-3, |_| Err(("output `N_normal[1]`".into(), f64::INFINITY))).unwrap_err();
+    assert!(matches!(e, StepError::NonFiniteOutput { .. }), "{e}");
+    let text = e.to_string();
+    assert!(text.contains("output `N_normal[1]`") && text.contains("likely cause"), "{text}");
+    assert_eq!(sim.state(), &before);
+    sim.advance(&inputs, 1e-3).unwrap();
+}
+
+/// Inputs beyond the physical ranges are refused before anything runs, with
+/// the range in the message.
+#[test]
+fn inputs_out_of_range_are_refused() {
+    let mut sim = running_reference();
+    let before = sim.state().clone();
+    let fast = [0.0, 1e300, 0.8, 0.0];
+    let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &fast, qdd_star: &A }, 1e-3).unwrap_err();
+    assert!(matches!(e, StepError::InputOutOfRange { field: "qd_star", joint: 2, .. }), "{e}");
+    assert!(e.to_string().contains("[-1000, 1000]"), "{e}");
+    assert_eq!(sim.state(), &before);
+}

@@ -2,14 +2,14 @@
 //! simulator. Safe Rust only; `boundary.rs` turns pointers into slices and
 //! results into `fmi2Status`, `exports.rs` says which states allow a call.
 
-use super::description::{self, Causality, InputField, Output, Quantity, Setting, Type, Variability, Variable};
+use super::description::{self, Causality, Output, Quantity, Setting, Type, Variability, Variable};
 use super::lifecycle::{LifeCycle, States};
 use super::logger::{Category, Logger};
 use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
 use crate::model::Model;
-use crate::stepper::{DriveInputs, InitialState, Phase, Simulator, State};
+use crate::stepper::{DriveInputs, InitialState, Phase, Simulator, State, INPUT_RANGES};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
 /// The value of a variable.
@@ -34,7 +34,7 @@ pub(crate) struct Instance {
     lifecycle: LifeCycle,
     start_time: f64,
     stop_time: Option<f64>,
-    /// q*, q̇*, q̈* as set by the master (index = [`input_index`]).
+    /// q*, q̇*, q̈* as set by the master (index = `InputField::index`).
     inputs: [Vec<f64>; 3],
     use_start_values: bool,
     q_start: Vec<f64>,
@@ -48,14 +48,6 @@ pub(crate) struct Instance {
     pub(crate) logger: Logger,
 }
 
-fn input_index(field: InputField) -> usize {
-    match field {
-        InputField::Position => 0,
-        InputField::Velocity => 1,
-        InputField::Acceleration => 2,
-    }
-}
-
 fn drive_inputs(inputs: &[Vec<f64>; 3]) -> DriveInputs<'_> {
     DriveInputs { q_star: &inputs[0], qd_star: &inputs[1], qdd_star: &inputs[2] }
 }
@@ -67,6 +59,20 @@ fn output_value(s: &State, o: Output) -> Value {
     } else {
         Value::Real(x)
     }
+}
+
+/// Every output of `variables` is finite in `s`, and so is the rest of the
+/// state; otherwise the first output (or state field) that is not, by name.
+fn finite_outputs(variables: &[Variable], s: &State) -> Result<(), (String, f64)> {
+    for v in variables {
+        if let Quantity::Output(o) = v.quantity {
+            let x = o.value(s);
+            if !x.is_finite() {
+                return Err((format!("output `{}`", v.name), x));
+            }
+        }
+    }
+    s.check_finite()
 }
 
 fn phase_name(p: Phase) -> &'static str {
@@ -243,7 +249,8 @@ impl Instance {
         let mut sim =
             Simulator::new(self.sim.model().clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
         let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
-        sim.initialize(self.start_time, &drive_inputs(&self.inputs), initial)
+        let variables = &self.variables;
+        sim.initialize_checked(self.start_time, &drive_inputs(&self.inputs), initial, |s| finite_outputs(variables, s))
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
         self.sim = sim;
         self.stale = false;
@@ -261,7 +268,7 @@ impl Instance {
 
     fn value(&self, q: Quantity) -> Value {
         match q {
-            Quantity::Input(field, j) => Value::Real(self.inputs[input_index(field)][j]),
+            Quantity::Input(field, j) => Value::Real(self.inputs[field.index()][j]),
             Quantity::Output(o) => output_value(self.sim.state(), o),
             // The layout lists only the parameters a joint has.
             Quantity::Parameter(p, j) => Value::Real(self.sim.model().parameter(p, j).unwrap_or(f64::NAN)),
@@ -344,6 +351,12 @@ impl Instance {
             }
             self.check_settable(v)?;
             match v.quantity {
+                Quantity::Input(field, _) => {
+                    let range = INPUT_RANGES[field.index()].1;
+                    if !range.contains(*x) {
+                        return Err(Fault::error(format!("`{}` = {x:e} lies outside its range {range}", v.name)));
+                    }
+                }
                 Quantity::Parameter(p, j) => trial
                     .get_or_insert_with(|| self.sim.model().clone())
                     .set_parameter(p, j, *x)
@@ -389,7 +402,7 @@ impl Instance {
     /// into the engine's model, see [`Instance::set_real`]).
     fn store(&mut self, q: Quantity, value: Value) -> Result<(), Fault> {
         match (q, value) {
-            (Quantity::Input(field, j), Value::Real(x)) => self.inputs[input_index(field)][j] = x,
+            (Quantity::Input(field, j), Value::Real(x)) => self.inputs[field.index()][j] = x,
             (Quantity::StartQ(j), Value::Real(x)) => self.q_start[j] = x,
             (Quantity::StartQd(j), Value::Real(x)) => self.qd_start[j] = x,
             (Quantity::UseStartValues, Value::Boolean(b)) => self.use_start_values = b,
@@ -428,8 +441,18 @@ impl Instance {
                     v.name
                 )));
             }
-            match input_index(field) + *order as usize {
-                k @ 0..=2 => updates.push((k, j, *x)),
+            match field.index() + *order as usize {
+                k @ 0..=2 => {
+                    let (name, range) = INPUT_RANGES[k];
+                    if !range.contains(*x) {
+                        return Err(Fault::error(format!(
+                            "derivative of order {order} of `{}` sets `{name}[{}]` = {x:e}, outside its range {range}",
+                            v.name,
+                            j + 1
+                        )));
+                    }
+                    updates.push((k, j, *x))
+                }
                 _ if *x == 0.0 => {}
                 _ => ignored.push(format!("order {order} of `{}`", v.name)),
             }
@@ -474,7 +497,8 @@ impl Instance {
                 return Err(Fault::error(format!("a step to t = {} s passes the stop time {stop} s", now + h)));
             }
         }
-        let result = self.sim.advance(&drive_inputs(&self.inputs), h);
+        let variables = &self.variables;
+        let result = self.sim.advance_checked(&drive_inputs(&self.inputs), h, |s| finite_outputs(variables, s));
         if result.is_err() {
             // Phase changes of a step that was not taken did not happen.
             self.sim.clear_transitions();

@@ -363,6 +363,8 @@ mod tests {
         };
         state.end_point = Vec3::new(next(), next(), next());
         state.end_point_rigid = Vec3::new(next(), next(), next());
+        state.clearance_margin = vec![f64::INFINITY, next(), -next(), f64::INFINITY];
+        state.steps = StepStatistics { accepted: 123_456, rejected: 789, last_h: next(), next_h: next() };
         Snapshot {
             lifecycle: LifeCycle::StepFailed,
             start_time: -0.5,
@@ -442,5 +444,61 @@ mod tests {
         s.state.phase[0] = Phase::Slipping(3);
         let bytes = encode(&s, HASH);
         assert!(decode(&bytes, HASH, 4, 7).unwrap_err().contains("phase"));
+    }
+
+    mod properties {
+        //! Arbitrary bytes, and arbitrary mutations of a valid FMU state
+        //! (bit flips, truncation, extension, runs of zeros), never make the
+        //! decoder panic: it returns a state that fits the model, or an error.
+        use super::*;
+        use proptest::prelude::*;
+
+        fn decodes_or_refuses(bytes: &[u8]) {
+            if let Ok(s) = decode(bytes, HASH, 4, 7) {
+                // Accepted bytes are a whole, well-formed state (the checksum
+                // makes this all but impossible for mutated ones).
+                assert_eq!(s.parameters.len(), 7);
+                assert_eq!(s.state.nq(), 4);
+                assert_eq!(encode(&s, HASH), bytes);
+            }
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig { cases: 2000, failure_persistence: None, ..ProptestConfig::default() })]
+
+            #[test]
+            fn arbitrary_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
+                decodes_or_refuses(&bytes);
+            }
+
+            #[test]
+            fn arbitrary_bytes_behind_a_valid_header(tail in proptest::collection::vec(any::<u8>(), 0..2048)) {
+                let mut bytes = encode(&sample(), HASH)[..HEADER].to_vec();
+                bytes.extend(tail);
+                decodes_or_refuses(&bytes);
+            }
+
+            #[test]
+            fn mutated_valid_states(
+                flips in proptest::collection::vec((any::<prop::sample::Index>(), 0u8..8), 0..8),
+                cut in any::<prop::sample::Index>(),
+                kind in 0u8..4,
+                extra in proptest::collection::vec(any::<u8>(), 0..64),
+            ) {
+                let mut bytes = encode(&sample(), HASH);
+                for (at, bit) in &flips {
+                    let i = at.index(bytes.len());
+                    bytes[i] ^= 1 << bit;
+                }
+                let at = cut.index(bytes.len());
+                match kind {
+                    0 => bytes.truncate(at),
+                    1 => bytes.extend(&extra),
+                    2 => bytes[at..].iter_mut().take(extra.len()).for_each(|b| *b = 0),
+                    _ => {}
+                }
+                decodes_or_refuses(&bytes);
+            }
+        }
     }
 }

@@ -1,7 +1,7 @@
 //! The immutable description of a manipulator: the chain, its drives, its
 //! friction and the integrator settings.
 
-use super::{ContactGeometry, Drive, Joint, JointKind, Link};
+use super::{ContactGeometry, Drive, Joint, JointKind, Link, Parameter};
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
 
@@ -105,44 +105,117 @@ fn invalid(field: impl Into<String>, value: f64, reason: impl Into<String>) -> M
     ModelError::InvalidParameter { field: field.into(), value, reason: reason.into() }
 }
 
-/// Checks that `value` is finite and lies in the range described by `check`.
+/// Checks that `value` is finite and lies in `range`.
 pub(crate) fn check_value(field: &str, value: f64, range: Range) -> Result<(), ModelError> {
     if !value.is_finite() {
         return Err(invalid(field, value, "must be a finite number"));
     }
-    let ok = match range {
-        Range::Any => true,
-        Range::Positive => value > 0.0,
-        Range::NonNegative => value >= 0.0,
-    };
-    if ok {
+    if range.contains(value) {
         Ok(())
     } else {
-        Err(invalid(field, value, range.reason()))
+        Err(invalid(field, value, range.requirement()))
     }
 }
 
-/// Admissible range of a scalar parameter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Range {
-    Any,
-    Positive,
-    NonNegative,
+/// The admissible range of a scalar: finite, between `min` and `max`. The
+/// ceilings are physical, far beyond any machine, and keep every quantity the
+/// engine derives from the values far from overflow.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Range {
+    /// Lower bound.
+    pub min: f64,
+    /// Upper bound (included).
+    pub max: f64,
+    /// True if `min` itself is excluded (a positive quantity).
+    pub min_excluded: bool,
 }
 
 impl Range {
-    fn reason(self) -> &'static str {
-        match self {
-            Range::Any => "must be finite",
-            Range::Positive => "must be positive",
-            Range::NonNegative => "must not be negative",
-        }
+    /// [min, max].
+    pub const fn closed(min: f64, max: f64) -> Range {
+        Range { min, max, min_excluded: false }
+    }
+
+    /// (0, max]: positive.
+    pub const fn positive(max: f64) -> Range {
+        Range { min: 0.0, max, min_excluded: true }
+    }
+
+    /// [−bound, bound].
+    pub const fn symmetric(bound: f64) -> Range {
+        Range::closed(-bound, bound)
+    }
+
+    /// What a value must be, in words and as an interval: "must be
+    /// positive and at most 1e12: (0, 1e12]".
+    pub fn requirement(&self) -> String {
+        let words = if self.min == 0.0 && self.min_excluded {
+            format!("must be positive and at most {}", number(self.max))
+        } else if self.min == 0.0 {
+            format!("must not be negative and at most {}", number(self.max))
+        } else if self.min == -self.max {
+            format!("must be finite and at most {} in magnitude", number(self.max))
+        } else {
+            format!("must be at least {} and at most {}", number(self.min), number(self.max))
+        };
+        format!("{words}: {self}")
+    }
+
+    /// True if `x` lies in the range (NaN never does).
+    pub fn contains(&self, x: f64) -> bool {
+        let above = if self.min_excluded { x > self.min } else { x >= self.min };
+        above && x <= self.max
+    }
+
+    /// Length of the model's chain: DH lengths, centres, points, m; angles, rad.
+    pub const GEOMETRY: Range = Range::symmetric(1e3);
+    /// Gravity, m/s².
+    pub const GRAVITY: Range = Range::symmetric(1e3);
+    /// Link mass, kg.
+    pub const MASS: Range = Range::positive(1e6);
+    /// Entries of an inertia tensor, kg·m².
+    pub const INERTIA: Range = Range::symmetric(1e9);
+    /// Drive stiffness k, N/m or N·m/rad.
+    pub const STIFFNESS: Range = Range::positive(1e12);
+    /// Drive damping h, N·s/m or N·m·s/rad.
+    pub const DAMPING: Range = Range::closed(0.0, 1e9);
+    /// Drive clearance Δ, m or rad.
+    pub const CLEARANCE: Range = Range::closed(0.0, 1.0);
+    /// Friction coefficients μ_k, μ_s.
+    pub const FRICTION_COEFFICIENT: Range = Range::closed(0.0, 2.0);
+    /// Stribeck velocity v_s, m/s or rad/s (0: constant μ_k).
+    pub const STRIBECK_VELOCITY: Range = Range::closed(0.0, 1e3);
+    /// Slider length a, m.
+    pub const SLIDER_LENGTH: Range = Range::positive(100.0);
+    /// Slider cross-section b, c; bearing diameters and distances, m.
+    pub const CONTACT_SIZE: Range = Range::closed(0.0, 100.0);
+}
+
+/// Admissible ranges of the drive inputs q*, q̇*, q̈* (m or rad, per s, per
+/// s²), by input name: no machine comes near them, and they keep every
+/// quantity the engine derives from the inputs far from overflow.
+pub const INPUT_RANGES: [(&str, Range); 3] =
+    [("q_star", Range::symmetric(1e3)), ("qd_star", Range::symmetric(1e3)), ("qdd_star", Range::symmetric(1e6))];
+
+impl std::fmt::Display for Range {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let open = if self.min_excluded { '(' } else { '[' };
+        write!(f, "{open}{}, {}]", number(self.min), number(self.max))
     }
 }
 
-fn check_vec(field: &str, v: &Vec3) -> Result<(), ModelError> {
+/// A bound as people write it: 2, 0.5, 1e-3, 1e12.
+fn number(x: f64) -> String {
+    if x == 0.0 || (1e-2..1e4).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+fn check_vec(field: &str, v: &Vec3, range: Range) -> Result<(), ModelError> {
     for (k, x) in v.iter().enumerate() {
-        check_value(&format!("{field}[{}]", k + 1), *x, Range::Any)?;
+        check_value(&format!("{field}[{}]", k + 1), *x, range)?;
     }
     Ok(())
 }
@@ -169,8 +242,8 @@ impl Model {
                 reason: format!("{} links for {n} joints", self.links.len()),
             });
         }
-        check_vec("gravity", &self.gravity)?;
-        check_vec("end_point", &self.end_point)?;
+        check_vec("gravity", &self.gravity, Range::GRAVITY)?;
+        check_vec("end_point", &self.end_point, Range::GEOMETRY)?;
         for (i, (joint, link)) in self.joints.iter().zip(&self.links).enumerate() {
             validate_joint(i + 1, joint)?;
             validate_link(i + 1, link)?;
@@ -179,22 +252,28 @@ impl Model {
     }
 }
 
+/// l_A + l_B of a bearing pair, m: at least 1 mm, so that (3.15) divides by
+/// a length, not by rounding.
+const BEARING_SPAN: Range = Range::closed(1e-3, 200.0);
+/// b + c of a slider, m: at least 1 mm, for the same reason in (3.11).
+const SLIDER_SECTION: Range = Range::closed(1e-3, 200.0);
+
 fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     let f = |name: &str| format!("joint[{number}].{name}");
-    check_value(&f("theta"), joint.dh.theta, Range::Any)?;
-    check_value(&f("d"), joint.dh.d, Range::Any)?;
-    check_value(&f("a"), joint.dh.a, Range::Any)?;
-    check_value(&f("alpha"), joint.dh.alpha, Range::Any)?;
+    check_value(&f("theta"), joint.dh.theta, Range::GEOMETRY)?;
+    check_value(&f("d"), joint.dh.d, Range::GEOMETRY)?;
+    check_value(&f("a"), joint.dh.a, Range::GEOMETRY)?;
+    check_value(&f("alpha"), joint.dh.alpha, Range::GEOMETRY)?;
     if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
-        check_value(&f("drive.k"), stiffness, Range::Positive)?;
-        check_value(&f("drive.h"), damping, Range::NonNegative)?;
-        check_value(&f("drive.clearance"), clearance, Range::NonNegative)?;
+        check_value(&f("drive.k"), stiffness, Parameter::Stiffness.range())?;
+        check_value(&f("drive.h"), damping, Parameter::Damping.range())?;
+        check_value(&f("drive.clearance"), clearance, Parameter::Clearance.range())?;
     }
     let Some(friction) = joint.friction else { return Ok(()) };
     let c = friction.coefficients;
-    check_value(&f("friction.mu_k"), c.mu_kinetic, Range::NonNegative)?;
-    check_value(&f("friction.mu_s"), c.mu_static, Range::NonNegative)?;
-    check_value(&f("friction.v_s"), c.stribeck_velocity, Range::NonNegative)?;
+    check_value(&f("friction.mu_k"), c.mu_kinetic, Parameter::MuKinetic.range())?;
+    check_value(&f("friction.mu_s"), c.mu_static, Parameter::MuStatic.range())?;
+    check_value(&f("friction.v_s"), c.stribeck_velocity, Parameter::StribeckVelocity.range())?;
     if c.mu_static < c.mu_kinetic {
         return Err(invalid(
             f("friction.mu_s"),
@@ -204,26 +283,26 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     }
     match (joint.kind, friction.geometry) {
         (JointKind::Revolute, ContactGeometry::Bearings { reaction_point, l_a, l_b, d_a, d_b, d_c }) => {
-            check_vec(&f("bearings.reaction_point"), &reaction_point)?;
+            check_vec(&f("bearings.reaction_point"), &reaction_point, Range::GEOMETRY)?;
             if reaction_point.x.abs() > 1e-12 || reaction_point.y.abs() > 1e-12 {
                 return Err(ModelError::Invalid {
                     field: f("bearings.reaction_point"),
                     reason: "must lie on the joint axis z (x = y = 0 in frame i-1)".into(),
                 });
             }
-            check_value(&f("bearings.l_a"), l_a, Range::NonNegative)?;
-            check_value(&f("bearings.l_b"), l_b, Range::NonNegative)?;
-            check_value(&f("bearings.l_a + bearings.l_b"), l_a + l_b, Range::Positive)?;
-            check_value(&f("bearings.d_a"), d_a, Range::NonNegative)?;
-            check_value(&f("bearings.d_b"), d_b, Range::NonNegative)?;
-            check_value(&f("bearings.d_c"), d_c, Range::NonNegative)?;
+            check_value(&f("bearings.l_a"), l_a, Parameter::LengthA.range())?;
+            check_value(&f("bearings.l_b"), l_b, Parameter::LengthB.range())?;
+            check_value(&f("bearings.l_a + bearings.l_b"), l_a + l_b, BEARING_SPAN)?;
+            check_value(&f("bearings.d_a"), d_a, Parameter::DiameterA.range())?;
+            check_value(&f("bearings.d_b"), d_b, Parameter::DiameterB.range())?;
+            check_value(&f("bearings.d_c"), d_c, Parameter::DiameterC.range())?;
         }
         (JointKind::Prismatic, ContactGeometry::Slider { centre, a, b, c }) => {
-            check_vec(&f("slider.centre"), &centre)?;
-            check_value(&f("slider.a"), a, Range::Positive)?;
-            check_value(&f("slider.b"), b, Range::NonNegative)?;
-            check_value(&f("slider.c"), c, Range::NonNegative)?;
-            check_value(&f("slider.b^2 + slider.c^2"), b * b + c * c, Range::Positive)?;
+            check_vec(&f("slider.centre"), &centre, Range::GEOMETRY)?;
+            check_value(&f("slider.a"), a, Parameter::SliderA.range())?;
+            check_value(&f("slider.b"), b, Parameter::SliderB.range())?;
+            check_value(&f("slider.c"), c, Parameter::SliderC.range())?;
+            check_value(&f("slider.b + slider.c"), b + c, SLIDER_SECTION)?;
         }
         (JointKind::Revolute, _) => {
             return Err(ModelError::Invalid {
@@ -243,12 +322,12 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
 
 fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
     let f = |name: &str| format!("joint[{number}].link.{name}");
-    check_value(&f("mass"), link.mass, Range::Positive)?;
-    check_vec(&f("com"), &link.com)?;
+    check_value(&f("mass"), link.mass, Parameter::Mass.range())?;
+    check_vec(&f("com"), &link.com, Range::GEOMETRY)?;
     let i = &link.inertia;
     const ENTRIES: [&str; 9] = ["xx", "xy", "xz", "xy", "yy", "yz", "xz", "yz", "zz"];
     for (name, x) in ENTRIES.iter().zip(i.iter()) {
-        check_value(&f(&format!("inertia.{name}")), *x, Range::Any)?;
+        check_value(&f(&format!("inertia.{name}")), *x, Range::INERTIA)?;
     }
     if (i - i.transpose()).amax() > 1e-12 * i.amax().max(1e-300) {
         return Err(ModelError::Invalid { field: f("inertia"), reason: "tensor is not symmetric".into() });
@@ -277,7 +356,7 @@ fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
 fn validate_integrator(s: &IntegratorSettings) -> Result<(), ModelError> {
     let (h0, h1) = IntegratorSettings::STEP_RANGE;
     for (field, h) in [("integrator.h_min", s.h_min), ("integrator.h_max", s.h_max)] {
-        check_value(field, h, Range::Positive)?;
+        check_value(field, h, Range::positive(IntegratorSettings::STEP_RANGE.1))?;
         if !(h0..=h1).contains(&h) {
             return Err(invalid(field, h, format!("must lie in [{h0:e}, {h1:e}] s")));
         }

@@ -10,5 +10,5 @@ mod presets;
 pub use file::REFERENCE_RRPR_TOML;
 pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};
 pub use link::Link;
-pub use manipulator::{IntegratorSettings, Model, MAX_JOINTS};
+pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS};
 pub use parameter::Parameter;

@@ -81,10 +81,25 @@ impl Parameter {
         }
     }
 
-    fn range(self) -> Range {
+    /// The physical range of the parameter: checked by
+    /// [`Model::set_parameter`] and in model files, declared as `min`/`max`
+    /// in the FMU's modelDescription.
+    pub fn range(self) -> Range {
         match self {
-            Parameter::Stiffness | Parameter::SliderA | Parameter::Mass => Range::Positive,
-            _ => Range::NonNegative,
+            Parameter::Stiffness => Range::STIFFNESS,
+            Parameter::Damping => Range::DAMPING,
+            Parameter::Clearance => Range::CLEARANCE,
+            Parameter::MuKinetic | Parameter::MuStatic => Range::FRICTION_COEFFICIENT,
+            Parameter::StribeckVelocity => Range::STRIBECK_VELOCITY,
+            Parameter::SliderA => Range::SLIDER_LENGTH,
+            Parameter::SliderB
+            | Parameter::SliderC
+            | Parameter::DiameterA
+            | Parameter::DiameterB
+            | Parameter::DiameterC
+            | Parameter::LengthA
+            | Parameter::LengthB => Range::CONTACT_SIZE,
+            Parameter::Mass => Range::MASS,
         }
     }
 }

@@ -1,5 +1,7 @@
 //! Drive inputs and their Taylor polynomial across a communication interval.
 
+pub use crate::model::INPUT_RANGES;
+
 /// Drive inputs at the start of a communication interval. For a flexible
 /// joint they are the drive end q*, q̇*, q̈*; for a rigid joint the prescribed
 /// q, q̇, q̈. Each slice has one value per joint.

@@ -8,7 +8,7 @@ mod simulator;
 mod state;
 mod switching;
 
-pub use inputs::{DriveInputs, InputPolynomial};
+pub use inputs::{DriveInputs, InputPolynomial, INPUT_RANGES};
 pub use isa::InstructionSet;
 pub use simulator::{InitialState, Simulator, Transition, TRANSITION_LOG_CAPACITY};
 pub use state::{Energy, Phase, State, StepStatistics};

@@ -1,7 +1,7 @@
 //! The simulator: a model, its workspace and its state, advanced over
 //! communication intervals by the iterative Newmark stepper.
 
-use super::inputs::{DriveInputs, InputPolynomial};
+use super::inputs::{DriveInputs, InputPolynomial, INPUT_RANGES};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
 use super::switching::StepControl;
@@ -189,12 +189,15 @@ impl Simulator {
 
     fn check_inputs(&self, inputs: &DriveInputs) -> Result<(), StepError> {
         let n = self.model.nq();
-        for (field, values) in [("q_star", inputs.q_star), ("qd_star", inputs.qd_star), ("qdd_star", inputs.qdd_star)] {
+        for ((field, range), values) in INPUT_RANGES.into_iter().zip([inputs.q_star, inputs.qd_star, inputs.qdd_star]) {
             if values.len() != n {
                 return Err(StepError::InputLength { field, expected: n, got: values.len() });
             }
             if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
                 return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
+            }
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
+                return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
             }
         }
         Ok(())
@@ -204,6 +207,19 @@ impl Simulator {
     /// joints start at q = q*, at rest and stuck (when they have friction)
     /// unless `initial` gives other start values.
     pub fn initialize(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
+        self.initialize_checked(t0, inputs, initial, State::check_finite)
+    }
+
+    /// [`Simulator::initialize`], with `check` of the initial state in place
+    /// of [`State::check_finite`]: an `Err((quantity, value))` of it is a
+    /// [`StepError::NonFiniteOutput`] and the simulator stays as it was.
+    pub fn initialize_checked(
+        &mut self,
+        t0: f64,
+        inputs: &DriveInputs,
+        initial: Option<InitialState>,
+        check: impl FnOnce(&State) -> Result<(), (String, f64)>,
+    ) -> Result<(), StepError> {
         self.check_model()?;
         self.check_inputs(inputs)?;
         if !t0.is_finite() {
@@ -221,8 +237,9 @@ impl Simulator {
             }
         }
         let previous = self.state.clone();
-        let result = self.initialize_inner(t0, inputs, initial);
+        let result = self.initialize_inner(t0, inputs, initial).and_then(|()| self.checked(check));
         if result.is_err() {
+            self.initialized = false;
             self.state = previous;
         }
         result
@@ -279,6 +296,20 @@ impl Simulator {
     /// closes or opens, so that the event falls on a sub-step boundary. On error the state is left as
     /// it was.
     pub fn advance(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
+        self.advance_checked(inputs, interval, State::check_finite)
+    }
+
+    /// [`Simulator::advance`], with `check` of the state at the end of the
+    /// interval in place of [`State::check_finite`] (an FMU checks its
+    /// outputs by name): an `Err((quantity, value))` of it is a
+    /// [`StepError::NonFiniteOutput`] and the state stays at the interval's
+    /// start.
+    pub fn advance_checked(
+        &mut self,
+        inputs: &DriveInputs,
+        interval: f64,
+        check: impl FnOnce(&State) -> Result<(), (String, f64)>,
+    ) -> Result<(), StepError> {
         if !(interval.is_finite() && interval > 0.0) {
             return Err(StepError::InvalidInterval { interval });
         }
@@ -289,7 +320,7 @@ impl Simulator {
         self.check_model()?;
         self.saved.copy_from(&self.state);
         self.solver.reset_count();
-        let result = self.advance_inner(inputs, interval);
+        let result = self.advance_inner(inputs, interval).and_then(|()| self.checked(check));
         if result.is_err() {
             self.state.copy_from(&self.saved);
         }
@@ -381,6 +412,11 @@ impl Simulator {
         }
         self.state.time = t_end;
         Ok(())
+    }
+
+    /// `check` of the current state as a step result.
+    fn checked(&self, check: impl FnOnce(&State) -> Result<(), (String, f64)>) -> Result<(), StepError> {
+        check(&self.state).map_err(|(quantity, value)| StepError::NonFiniteOutput { quantity, value, time: self.state.time })
     }
 
     /// Solves the state at the current time with the current phases, without

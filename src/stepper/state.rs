@@ -225,6 +225,59 @@ impl State {
         self.q.len()
     }
 
+    /// Every value a user can read is finite: coordinates, inputs, forces,
+    /// loads, reactions, stuck times, energies, end points and the last
+    /// sub-step. Otherwise the first one that is not, by its field name and
+    /// 1-based joint (`normal_load[1]`), and its value.
+    pub fn check_finite(&self) -> Result<(), (String, f64)> {
+        let joint_fields: [(&str, &[f64]); 10] = [
+            ("q", &self.q),
+            ("qd", &self.qd),
+            ("qdd", &self.qdd),
+            ("q_star", &self.q_star),
+            ("qd_star", &self.qd_star),
+            ("drive_force", &self.drive_force),
+            ("friction_force", &self.friction_force),
+            ("normal_load", &self.normal_load),
+            ("lever_load", &self.lever_load),
+            ("stuck_time", &self.stuck_time),
+        ];
+        for (name, values) in joint_fields {
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err((format!("{name}[{}]", i + 1), *v));
+            }
+        }
+        for (name, vectors) in [("reaction_force", &self.reaction_force), ("reaction_moment", &self.reaction_moment)] {
+            for (i, v) in vectors.iter().enumerate() {
+                if let Some((k, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                    return Err((format!("{name}[{},{}]", i + 1, k + 1), *x));
+                }
+            }
+        }
+        let e = &self.energy;
+        let scalars = [
+            ("energy.kinetic", e.kinetic),
+            ("energy.potential", e.potential),
+            ("energy.spring", e.spring),
+            ("energy.drive_work", e.drive_work),
+            ("energy.friction_heat", e.friction_heat),
+            ("energy.damping_heat", e.damping_heat),
+            ("end_point_error", self.end_point_error()),
+            ("steps.last_h", self.steps.last_h),
+        ];
+        for (name, v) in scalars {
+            if !v.is_finite() {
+                return Err((name.to_string(), v));
+            }
+        }
+        for (name, p) in [("end_point", &self.end_point), ("end_point_rigid", &self.end_point_rigid)] {
+            if let Some((k, x)) = p.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                return Err((format!("{name}[{}]", k + 1), *x));
+            }
+        }
+        Ok(())
+    }
+
     /// True if joint `i` (0-based) is in its stiction phase.
     pub fn is_stuck(&self, i: usize) -> bool {
         self.phase[i] == Phase::Stuck

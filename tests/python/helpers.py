@@ -3,14 +3,14 @@ examples/pd_control.py.
 
 * where the FMU is (``target/fmu/StickSlipManipulator.fmu``, or ``$STICKSLIP_FMU``),
   extracted once per process;
-* the reference motion of shared/reference-manipulator.md: cycloidal profiles
-  over T = 1.5 s evaluated with the same floating-point operations as
-  ``src/motion.rs``, so that the inputs are bit-identical to those of the Rust
-  engine's ``simulate_reference`` binary;
+* the reference motion of shared/reference-manipulator.md (``stickslip.motion``):
+  cycloidal profiles over T = 1.5 s evaluated with the same floating-point
+  operations as ``src/motion.rs``, so that the inputs are bit-identical to those
+  of the Rust engine's ``simulate_reference`` binary;
 * a direct run of the engine (``simulate_reference`` CSV), cached per process;
 * :class:`Slave`, a thin wrapper over fmpy's ``FMU2Slave`` that looks every
   variable up by name in the modelDescription (never a hard-coded value
-  reference) and captures the FMU's log messages;
+  reference) and captures the FMU's log messages (``stickslip.fmu.LogCapture``);
 * comparison of two runs relative to each signal's largest magnitude.
 """
 
@@ -23,9 +23,7 @@ import math
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
-from ctypes import byref
 from pathlib import Path
 
 import numpy as np
@@ -33,15 +31,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
 
-# Reference motion (shared/reference-manipulator.md), shared with the main job.
-sys.path.insert(0, str(ROOT / "python"))
-from fmu_runner import MOTION_TIME, REFERENCE_PROFILES, RUN_TIME, cycloidal, reference_inputs  # noqa: E402
+# Reference motion (shared/reference-manipulator.md) and the FMU's log capture: the
+# package `stickslip` (python/stickslip, installed into the venv by scripts/env.sh).
+from stickslip.fmu import LogCapture  # noqa: F401  (re-exported for the tests)
+from stickslip.motion import MOTION_TIME, REFERENCE_PROFILES, RUN_TIME, cycloidal, reference_inputs  # noqa: F401
+from stickslip.motion import input_names as motion_input_names
 
 INTERVAL = 1e-3  # communication step, s
 N_JOINTS = 4
 FLEXIBLE = (1, 3)  # 1-based joint indices with a flexible drive
-
-INPUT_GROUPS = ("q_star", "qd_star", "qdd_star")
 
 
 def fmu_path() -> Path:
@@ -71,7 +69,7 @@ def communication_times(end: float = RUN_TIME, interval: float = INTERVAL) -> np
 
 def input_names():
     """Names of the 12 inputs, in the order q_star[1..4], qd_star[1..4], qdd_star[1..4]."""
-    return [f"{g}[{i}]" for g in INPUT_GROUPS for i in range(1, N_JOINTS + 1)]
+    return motion_input_names(N_JOINTS)
 
 
 def input_vector(t: float):
@@ -176,65 +174,6 @@ class Variables:
 @functools.lru_cache(maxsize=None)
 def variables(path: str | None = None) -> Variables:
     return Variables(model_description(path))
-
-
-_LOG_SINKS = {}  # componentEnvironment id -> LogCapture
-_GLOBAL_LOGGER = None
-
-
-def _dispatch_log(env, instance, status, category, message):
-    dec = lambda b: b.decode("utf-8", "replace") if b is not None else ""  # noqa: E731
-    sink = _LOG_SINKS.get(env or 0)
-    record = (dec(instance), int(status), dec(category), dec(message))
-    if sink is not None:
-        sink.records.append(record)
-
-
-class LogCapture:
-    """fmi2CallbackFunctions whose logger appends (instance, status, category, message) to ``records``.
-
-    fmpy formats the FMU's variadic message in a native proxy (fmpy.logging.addLoggerProxy)
-    that keeps ONE Python logger for the whole process (a C global): every capture therefore
-    uses the same Python function, which dispatches on the componentEnvironment pointer, a
-    distinct small integer per capture.
-    """
-
-    _next_id = 1
-
-    def __init__(self, logger=True):
-        global _GLOBAL_LOGGER
-        from fmpy import calloc, free
-        from fmpy.fmi2 import (
-            fmi2CallbackAllocateMemoryTYPE,
-            fmi2CallbackFreeMemoryTYPE,
-            fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
-        )
-
-        self.records = []
-        self.id = LogCapture._next_id
-        LogCapture._next_id += 1
-        _LOG_SINKS[self.id] = self
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.callbacks.componentEnvironment = self.id
-        if logger:
-            if _GLOBAL_LOGGER is None:
-                _GLOBAL_LOGGER = fmi2CallbackLoggerTYPE(_dispatch_log)
-            self.callbacks.logger = _GLOBAL_LOGGER
-            from fmpy.logging import addLoggerProxy
-
-            addLoggerProxy(byref(self.callbacks))
-
-    def messages(self, category: str | None = None):
-        return [m for (_, _, c, m) in self.records if category is None or c == category]
-
-    def text(self) -> str:
-        return "\n".join(f"[{s}] {c}: {m}" for (_, s, c, m) in self.records)
-
-    def clear(self):
-        self.records.clear()
 
 
 class Slave:

@@ -1,42 +1,41 @@
 """The source study's claims (section 4, Figs. 10-14) hold on the reference manipulator,
-run through the FMU with fmpy by python/study.py.
+run through the FMU with fmpy by `stickslip study` (python/stickslip/study.py).
 
 Each claim is an assertion on numbers of the study's cases (shared/reference-manipulator.md):
 step size, friction coefficient, friction characteristic, clearance, slider length. Every
 case runs twice:
 
-* ``ci``: sub-step h_max = 2e-5 s, communication interval 1e-3 s (the step case: 5e-5,
-  2e-5, 4e-6 and 2e-6 s over 0.5 s). Every claim was checked to hold there with the same
-  margins as at full resolution: max and final eps, stick times and peak loads differ from the
-  full study by < 1 %, the vibration measure and peak friction by up to a few % (1 ms samples
-  miss vibration peaks), the stick-phase counts by at most 1 (the clearance case's joint 3).
-  Stick counts come from the FMU's cumulative ``n_stick``, so the coarse communication
-  interval loses no phase.
-* ``full`` (``@pytest.mark.slow``, run by scripts/main.sh): the study's resolution,
-  h_max = 2e-6 s (step case 5e-5, 2e-5, 2e-6, 1e-6 s over 2 s), interval 1e-4 s.
+* ``ci``: the FMU's default error-controlled sub-steps, communication interval 1e-3 s (the
+  step case: fixed sub-steps of 5e-5, 2e-5, 4e-6 and 2e-6 s over 0.5 s). Every claim holds
+  there with the same margins as at full resolution: the vibration measure and peak friction
+  differ by up to a few % (1 ms samples miss vibration peaks), the stick-phase counts by at
+  most 1 (the clearance case's joint 3). Stick counts come from the FMU's cumulative
+  ``n_stick``, so the coarse communication interval loses no phase.
+* ``full`` (``@pytest.mark.slow``, run by scripts/main.sh): error control, interval 1e-4 s;
+  the step case at fixed 5e-5, 2e-5, 2e-6, 1e-6 s over 2 s.
 
 Runs that change the same parameters are done once per process (study.simulate): the
 reference run is the step case's 2e-6 s, the friction case's 0.2, the constant
 characteristic and the clearance-free variant.
 """
 
+import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from helpers import ROOT, require_fmu
+from helpers import require_fmu
 
-import study  # noqa: E402  (python/ is on sys.path through helpers)
+from stickslip import study
 
-CI = {"h_max": 2e-5, "interval": 1e-3}
-FULL = {"h_max": 2e-6, "interval": 1e-4}
+CI = {"interval": 1e-3}
+FULL = {"interval": 1e-4}
 RESOLUTIONS = [pytest.param(CI, id="ci"), pytest.param(FULL, id="full", marks=pytest.mark.slow)]
 
 
-def _run(name, h_max, interval, end=study.RUN_TIME):
-    case = study.study_cases(h_max)[name]
+def _run(name, interval, end=study.RUN_TIME, step_h=study.DEFAULT_STEP_H):
+    case = study.study_cases(step_h=step_h)[name]
     res = study.run_case(case, end, interval, require_fmu())
     for v, m in zip(case.variants, res["measures"]):
         j1, j3 = m["joint1"], m["joint3"]
@@ -54,21 +53,22 @@ def resolution(request):
 
 
 @pytest.mark.parametrize(
-    "h_max, end, interval",
+    "h, end, interval",
     [pytest.param(4e-6, 0.5, CI["interval"], id="ci"),
-     pytest.param(FULL["h_max"], study.RUN_TIME, FULL["interval"], id="full", marks=pytest.mark.slow)],
+     pytest.param(study.DEFAULT_STEP_H, study.RUN_TIME, FULL["interval"], id="full", marks=pytest.mark.slow)],
 )
-def test_step_half_step_reproduces_converged_run(h_max, end, interval):
+def test_step_half_step_reproduces_converged_run(h, end, interval):
     """Fig. 10: halving the sub-step from h to h/2 changes max |eps| by less than 1 % and each
     flexible joint's number of stiction phases by at most one (full: 2e-6 vs 1e-6 s over the
     2 s run; ci: 4e-6 vs 2e-6 s over 0.5 s). Unlike the study, where 5e-5 and 2e-5 s gave a
     different stick-slip pattern, the coarse steps agree too (same counts, max |eps| within
     1 %, phase boundaries within 0.1 ms): stick-slip transitions are located inside the
     sub-step instead of being noticed at its end."""
-    case, res = _run("step", h_max, interval, end)
+    case, res = _run("step", interval, end, step_h=h)
     m = res["measures"]
     fine = m[-1]
-    assert [v.parameters["h_max"] for v in case.variants] == [5e-5, 2e-5, h_max, h_max / 2]
+    assert [v.parameters["h_max"] for v in case.variants] == [5e-5, 2e-5, h, h / 2]
+    assert all(v.parameters["h_min"] == v.parameters["h_max"] for v in case.variants)
     for x in m[:-1]:
         assert abs(x["max_eps"] - fine["max_eps"]) <= 0.01 * fine["max_eps"]
         for j in study.FLEXIBLE:
@@ -146,16 +146,17 @@ def test_stick_phases_rebuilt_from_counters():
 
 
 def test_command_writes_csv_figure_and_summary(tmp_path):
-    """`python python/study.py --cases friction ...` writes friction.csv (time + the variants'
+    """`stickslip study --cases friction ...` writes friction.csv (time + the variants'
     columns), friction.png and the summary (JSON and markdown), with a progress line per case."""
     out = tmp_path / "study"
     p = subprocess.run(
-        [sys.executable, str(ROOT / "python" / "study.py"), "--out", str(out), "--cases", "friction",
-         "--h-max", "5e-5", "--interval", "1e-3", "--end", "0.3", "--fmu", str(require_fmu())],
+        [shutil.which("stickslip"), "study", "--out", str(out), "--cases", "friction",
+         "--fixed-step", "5e-5", "--interval", "1e-3", "--end", "0.3", "--fmu", str(require_fmu())],
         capture_output=True, text=True, check=True)
     assert "[1/1] friction" in p.stdout
     header = (out / "friction.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and "mu3=0.1:eps" in header and "mu3=0.2:n_stick[3]" in header
     assert (out / "friction.png").stat().st_size > 10_000
     assert "friction" in (out / "summary.json").read_text(encoding="utf-8")
-    assert "| μ3 = 0.1 |" in (out / "summary.md").read_text(encoding="utf-8")
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    assert "| μ3 = 0.1 |" in summary and "fixed sub-steps of 5e-05 s" in summary

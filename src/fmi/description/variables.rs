@@ -15,7 +15,7 @@
 
 use super::hash::Fnv1a128;
 use super::outputs::{outputs, Output};
-use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter};
+use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, INPUT_RANGES};
 
 /// Causality of a variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,6 +80,17 @@ pub enum InputField {
     Velocity,
     /// q̈*.
     Acceleration,
+}
+
+impl InputField {
+    /// 0, 1, 2 for q*, q̇*, q̈*: the position in [`INPUT_RANGES`].
+    pub fn index(self) -> usize {
+        match self {
+            InputField::Position => 0,
+            InputField::Velocity => 1,
+            InputField::Acceleration => 2,
+        }
+    }
 }
 
 /// A fixed setting of the stepper.
@@ -353,13 +364,9 @@ fn inputs(b: &mut Builder, model: &Model) {
                 "{role} of {}, at the start of the communication step; held as the polynomial q* + q*' t + q*'' t^2/2 across it",
                 joint_label(model, j)
             );
-            b.push(
-                format!("{name}[{}]", j + 1),
-                description,
-                INPUT,
-                real_start(Some(unit), 0.0),
-                Quantity::Input(field, j),
-            );
+            let range = INPUT_RANGES[field.index()].1;
+            let ty = Type::Real { unit: Some(unit), min: Some(range.min), max: Some(range.max), start: Some(0.0) };
+            b.push(format!("{name}[{}]", j + 1), description, INPUT, ty, Quantity::Input(field, j));
         }
     }
 }
@@ -401,8 +408,10 @@ fn parameters(b: &mut Builder, model: &Model) {
         for j in 0..model.nq() {
             let Some(value) = model.parameter(p, j) else { continue };
             let (unit, description) = parameter_meaning(model, p, j);
-            // Every engine parameter is positive or non-negative.
-            let ty = Type::Real { unit, min: Some(0.0), max: None, start: Some(value) };
+            // The physical range (a positive parameter declares min = 0,
+            // and 0 itself is refused with its range in the message).
+            let range = p.range();
+            let ty = Type::Real { unit, min: Some(range.min), max: Some(range.max), start: Some(value) };
             b.push(format!("{}[{}]", p.name(), j + 1), description, TUNABLE, ty, Quantity::Parameter(p, j));
         }
     }

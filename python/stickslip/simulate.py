@@ -1,16 +1,14 @@
 """Run the stick-slip manipulator FMU with fmpy, the way a user does.
 
-* the reference motion of shared/reference-manipulator.md: cycloidal
-  point-to-point profiles over T = 1.5 s, evaluated with the same
-  floating-point operations as ``src/motion.rs`` (bit-identical inputs);
 * :func:`run`: instantiate the FMU with fmpy's FMU2Slave, set parameters,
-  step it over the reference motion (inputs q*, q*', q*'' set at every
+  step it over a motion, by default the reference motion of
+  :mod:`stickslip.motion` (inputs q*, q*', q*'' set at every
   communication point) and collect every output by name;
 * :func:`write_csv`: the outputs as CSV, one column per FMU variable.
 
 Command line (the main job uses it)::
 
-    python python/fmu_runner.py [--fmu FILE] [--out results/reference.csv]
+    stickslip simulate [--fmu FILE] [--out results/reference.csv]
         [--end 2.0] [--interval 1e-3] [--set NAME=VALUE ...]
 """
 
@@ -18,54 +16,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import shutil
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
-
-MOTION_TIME = 1.5  # T of the cycloidal profiles, s
-RUN_TIME = 2.0  # the reference run, s
-REFERENCE_PROFILES = (  # (start, end) of q1*, q2, q3*, q4
-    (0.0, math.pi / 3.0),
-    (0.0, math.pi / 12.0),
-    (0.8, 1.0),
-    (0.0, math.pi / 2.0),
-)
-
-
-def cycloidal(start: float, end: float, t: float, duration: float = MOTION_TIME):
-    """(q, q', q'') of the cycloidal profile s(tau) = tau - sin(2 pi tau)/(2 pi) at time t.
-
-    The same operations, in the same order, as ``Cycloidal::eval`` in
-    src/motion.rs, so the values are bit-identical to the engine's.
-    """
-    tau2 = math.tau
-    d = end - start
-    if t <= 0.0:
-        return start, 0.0, 0.0
-    if t >= duration:
-        return end, 0.0, 0.0
-    tau = t / duration
-    s = tau - math.sin(tau2 * tau) / tau2
-    sd = (1.0 - math.cos(tau2 * tau)) / duration
-    sdd = tau2 * math.sin(tau2 * tau) / (duration * duration)
-    return start + d * s, d * sd, d * sdd
-
-
-def reference_inputs(t: float):
-    """(q*, q*', q*'') lists of the 4 joints of the reference motion at time t."""
-    q, qd, qdd = [], [], []
-    for start, end in REFERENCE_PROFILES:
-        a, b, c = cycloidal(start, end, t)
-        q.append(a)
-        qd.append(b)
-        qdd.append(c)
-    return q, qd, qdd
+from .fmu import DEFAULT_FMU, ROOT, communication_points, initialize, input_references
+from .motion import RUN_TIME, reference_inputs
 
 
 def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, parameters: dict | None = None,
@@ -73,8 +31,8 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
     """Simulates ``end`` seconds in communication steps of ``interval``.
 
     ``parameters`` maps FMU variable names (``mu_k[3]``, ``h_max``, ...) to
-    values set before initialization; ``inputs(t)`` returns (q*, q*', q*'')
-    per joint at t. Returns a dict: ``time`` and every output by name, as
+    values set before initialization; ``inputs(t, interval)`` returns (q*, q*', q*'')
+    per joint at t (:mod:`stickslip.motion`). Returns a dict: ``time`` and every output by name, as
     lists (Booleans as 0/1).
     """
     from fmpy import extract, read_model_description
@@ -82,9 +40,7 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
 
     fmu = str(fmu)
     md = read_model_description(fmu)
-    by_name = {v.name: v for v in md.modelVariables}
-    n = sum(1 for v in md.modelVariables if v.name.startswith("q_star["))
-    in_vrs = [by_name[f"{g}[{i}]"].valueReference for g in ("q_star", "qd_star", "qdd_star") for i in range(1, n + 1)]
+    in_vrs = input_references(md)
     outputs = [v for v in md.modelVariables if v.causality == "output"]
     real_out = [v for v in outputs if v.type == "Real"]
     bool_out = [v for v in outputs if v.type == "Boolean"]
@@ -99,32 +55,16 @@ def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, paramete
         # One tuple per communication point; split into columns at the end.
         rows.append((t, *slave.getReal(real_vrs), *(1 if x else 0 for x in slave.getBoolean(bool_vrs))))
 
-    def set_inputs(t):
-        q, qd, qdd = inputs(t)
-        slave.setReal(in_vrs, [float(x) for x in (*q, *qd, *qdd)])
-
     try:
         slave.instantiate()
-        slave.setupExperiment(startTime=0.0)
-        for name, value in (parameters or {}).items():
-            v = by_name[name]
-            if v.type == "Boolean":
-                slave.setBoolean([v.valueReference], [bool(value)])
-            else:
-                slave.setReal([v.valueReference], [float(value)])
-        slave.enterInitializationMode()
-        set_inputs(0.0)
-        slave.exitInitializationMode()
+        initialize(slave, md, parameters or {}, in_vrs, inputs, interval)
         record(0.0)
         steps = round(end / interval)
         wall = time.perf_counter()
-        for k in range(steps):
-            t = k * interval
-            set_inputs(t)
-            slave.doStep(currentCommunicationPoint=t, communicationStepSize=interval)
-            record((k + 1) * interval)
-            if progress and (k + 1) % max(1, steps // 10) == 0:
-                print(f"\r{progress}: t = {(k + 1) * interval:.3f} s of {end} s "
+        for k, t in communication_points(slave, in_vrs, inputs, end, interval):
+            record(t)
+            if progress and k % max(1, steps // 10) == 0:
+                print(f"\r{progress}: t = {t:.3f} s of {end} s "
                       f"({time.perf_counter() - wall:.1f} s wall)", end="", file=sys.stderr, flush=True)
         if progress:
             print(file=sys.stderr)
@@ -148,14 +88,16 @@ def write_csv(result: dict, path) -> None:
             w.writerow([repr(float(x)) for x in row])
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description="Simulate the reference motion through the FMU (fmpy).")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
     p.add_argument("--out", default=str(ROOT / "results" / "reference.csv"))
     p.add_argument("--end", type=float, default=RUN_TIME)
     p.add_argument("--interval", type=float, default=1e-3)
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
-    a = p.parse_args(argv)
+
+
+def main(a: argparse.Namespace) -> int:
+    """``stickslip simulate``: the reference motion through the FMU, written as CSV."""
     parameters = {}
     for item in a.set:
         name, _, value = item.partition("=")
@@ -168,6 +110,3 @@ def main(argv=None) -> int:
           f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

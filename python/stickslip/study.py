@@ -2,12 +2,13 @@
 
 Five cases (shared/reference-manipulator.md, "The study cases"), each a set of
 variants of the reference motion run through the FMU with fmpy
-(:func:`fmu_runner.run`), the way a user does:
+(:func:`stickslip.simulate.run`), the way a user does:
 
 =============== ============================================== =====================
 case            variants                                       quantity
 =============== ============================================== =====================
-step            h_max = 5e-5, 2e-5, H, H/2 s (H = --h-max)     q'_3, stick phases
+step            fixed sub-steps 5e-5, 2e-5, H, H/2 s (H =      q'_3, stick phases
+                --step-h, 2e-6 s)
 friction        mu_3 = 0.1 vs 0.2 (kinetic = static)           eps
 characteristic  constant mu = 0.2 vs decreasing mu(v) in       eps_3, stick phases
                 joints 1 and 3 (mu_S 0.2, mu_C 0.12, v_S 0.01)
@@ -30,8 +31,12 @@ to one communication interval (1e-4 s by default).
 
 Command line (the main job runs it after the reference run)::
 
-    python python/study.py [--out results/study] [--h-max 2e-6] [--cases step,friction,...]
-        [--end 2.0] [--interval 1e-4] [--fmu FILE]
+    stickslip study [--out results/study] [--fixed-step H] [--step-h 2e-6]
+        [--cases step,friction,...] [--end 2.0] [--interval 1e-4] [--fmu FILE]
+
+Every case but the step case runs with the FMU's error-controlled sub-steps (its
+defaults), unless ``--fixed-step H`` fixes them (h_min = h_max = H); the step case
+always uses fixed sub-steps.
 """
 
 from __future__ import annotations
@@ -47,11 +52,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from fmu_runner import DEFAULT_FMU, MOTION_TIME, ROOT, RUN_TIME, run  # noqa: E402
+from .fmu import DEFAULT_FMU, ROOT
+from .motion import MOTION_TIME, RUN_TIME
+from .simulate import run
 
 FLEXIBLE = (1, 3)  # joints with a flexible drive and friction
-DEFAULT_H_MAX = 2e-6  # s, the study's converged step
+DEFAULT_STEP_H = 2e-6  # s, the study's converged step: the finest fixed step of the step case
 DEFAULT_INTERVAL = 1e-4  # s, communication interval: resolution of the stiction bars
 COARSE_STEPS = (5e-5, 2e-5)  # s, the study's Fig. 10 (a), (b)
 MOVING_MEAN = 0.05  # s, window of the moving mean that separates vibration from drift
@@ -104,12 +110,18 @@ def _letters(n):
     return [f"({chr(ord('a') + k)})" for k in range(n)]
 
 
-def study_cases(h_max: float = DEFAULT_H_MAX) -> dict:
-    """The five cases, each variant at sub-step ``h_max`` except the step case
-    (5e-5, 2e-5, h_max and h_max/2 s)."""
-    base = {"h_max": h_max}
-    steps = sorted({*COARSE_STEPS, h_max, h_max / 2.0}, reverse=True)
-    step = tuple(Variant(f"h = {h:.0e} s", f"h={h:.0e}", {"h_max": h}) for h in steps)
+def fixed_steps(h: float) -> dict:
+    """The FMU parameters of fixed sub-steps of ``h`` seconds (h_min = h_max)."""
+    return {"h_min": h, "h_max": h}
+
+
+def study_cases(fixed_step: float | None = None, step_h: float = DEFAULT_STEP_H) -> dict:
+    """The five cases: every variant with the FMU's error control, or with fixed
+    sub-steps of ``fixed_step`` s; the step case with fixed sub-steps of 5e-5, 2e-5,
+    ``step_h`` and ``step_h``/2 s."""
+    base = {} if fixed_step is None else fixed_steps(fixed_step)
+    steps = sorted({*COARSE_STEPS, step_h, step_h / 2.0}, reverse=True)
+    step = tuple(Variant(f"h = {h:.0e} s", f"h={h:.0e}", fixed_steps(h)) for h in steps)
     friction = tuple(Variant(f"μ3 = {mu}", f"mu3={mu}", base | {"mu_k[3]": mu, "mu_s[3]": mu}) for mu in (0.1, 0.2))
     characteristic = (
         Variant("constant μ = 0.2", "constant", base),
@@ -332,7 +344,7 @@ def run_case(case: Case, end: float = RUN_TIME, interval: float = DEFAULT_INTERV
     runs, walls = [], []
     for k, v in enumerate(case.variants):
         label = f"  {case.name} {k + 1}/{len(case.variants)} ({v.label})"
-        # fmu_runner's running line rewrites itself with \r: only for a terminal
+        # simulate.run's running line rewrites itself with \r: only for a terminal
         r, wall = simulate(v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None)
         if progress:
             print(f"{label}: " + (f"{wall:.1f} s wall" if wall else "reused") + f", max ε {np.max(r['eps']):.3e} m, "
@@ -431,7 +443,9 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
 
 
 def summary_markdown(results: dict, settings: dict) -> str:
-    lines = [f"# Study results (h_max = {settings['h_max']:g} s, communication interval "
+    stepping = ("error-controlled sub-steps" if settings["fixed_step"] is None
+                else f"fixed sub-steps of {settings['fixed_step']:g} s")
+    lines = [f"# Study results ({stepping}, communication interval "
              f"{settings['interval']:g} s, {settings['end']:g} s)", ""]
     for name, res in results.items():
         lines += [f"## {name}", "",
@@ -450,23 +464,28 @@ def summary_markdown(results: dict, settings: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description="The source study's five cases through the FMU (fmpy).")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default=str(ROOT / "results" / "study"))
-    p.add_argument("--h-max", type=float, default=DEFAULT_H_MAX, help="sub-step of every case (default 2e-6 s)")
+    p.add_argument("--fixed-step", type=float, default=None,
+                   help="fixed sub-steps of this length for every case but the step case (default: the FMU's error control)")
+    p.add_argument("--step-h", type=float, default=DEFAULT_STEP_H,
+                   help="finest fixed sub-step of the step case, which also runs half of it (default 2e-6 s)")
     p.add_argument("--cases", default=",".join(study_cases()), help="comma-separated subset")
     p.add_argument("--end", type=float, default=RUN_TIME)
     p.add_argument("--interval", type=float, default=DEFAULT_INTERVAL, help="communication interval (s)")
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
-    a = p.parse_args(argv)
-    all_cases = study_cases(a.h_max)
+
+
+def main(a: argparse.Namespace) -> int:
+    """``stickslip study``: the five cases, their CSVs, figures and summary."""
+    all_cases = study_cases(a.fixed_step, a.step_h)
     chosen = [c.strip() for c in a.cases.split(",") if c.strip()]
     unknown = [c for c in chosen if c not in all_cases]
     if unknown:
-        p.error(f"unknown case(s) {unknown}; choose from {list(all_cases)}")
+        raise SystemExit(f"stickslip study: unknown case(s) {unknown}; choose from {list(all_cases)}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = {"h_max": a.h_max, "interval": a.interval, "end": a.end, "fmu": a.fmu}
+    settings = {"fixed_step": a.fixed_step, "step_h": a.step_h, "interval": a.interval, "end": a.end, "fmu": a.fmu}
     summary, failed = {}, []
     start = time.perf_counter()
     for n, name in enumerate(chosen, 1):
@@ -500,6 +519,3 @@ def main(argv=None) -> int:
           f"summary.json, summary.md" + (f"; claims NOT holding: {failed}" if failed else "; every claim holds"))
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,74 @@
+"""The ``stickslip`` command: ``simulate``, ``study``, ``sweep``, ``bench``."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def _sweep_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("spec", help="the SPEC (TOML): stop_time, communication_step, motion, fmu, [grid], [sample]")
+    p.add_argument("--out", required=True, help="result directory (results.parquet, parts/, summary.png, summary.md)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
+    where.add_argument("--workers", type=int, metavar="N",
+                       help=f"worker processes of the local cluster (default: the number of cores, {os.cpu_count()})")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="stop a variant after this much wall time "
+                   "(status timeout)")
+    p.add_argument("--retries", type=int, default=2, help="runs of a task again after its worker died (default 2)")
+    p.add_argument("--samples", type=int, metavar="N", help="override [sample] n (the first N draws of the SPEC)")
+    p.add_argument("--stop-time", type=float, metavar="SECONDS", help="override stop_time")
+
+
+def sweep_main(a: argparse.Namespace) -> int:
+    """``stickslip sweep``: exit 0 when every variant has a row, 1 on a refused SPEC or a lost
+    cluster, 130 when interrupted."""
+    from . import spec as spec_module
+    from . import summary
+    from .sweep import SweepError, run_sweep
+
+    if a.workers is not None and a.workers < 1:
+        print(f"stickslip sweep: --workers {a.workers}: must be at least 1", file=sys.stderr)
+        return 1
+    try:
+        spec = spec_module.load(a.spec, {"stop_time": a.stop_time, "n": a.samples})
+        stats = run_sweep(spec, a.out, a.scheduler, a.workers, a.timeout, a.retries)
+    except (spec_module.SpecError, SweepError) as e:
+        print(f"stickslip sweep: {e}", file=sys.stderr)
+        return 1
+    rows = stats["rows"]
+    columns = list(rows.columns)
+    metrics = columns[columns.index("t_end") + 1:columns.index("worker")]
+    if len(rows):
+        summary.write(rows, spec, metrics, a.out, stats["seconds"] or None)
+    counts = ", ".join(f"{n} {s}" for s, n in rows["status"].value_counts().items())
+    rate = f"; {stats['ran'] / stats['seconds']:.2f} variants/s on {stats['workers']} workers" if stats["seconds"] else ""
+    print(f"sweep: {len(rows)} of {len(spec)} variants in {a.out}/results.parquet ({counts or 'none'}){rate}",
+          flush=True)
+    return 130 if stats["interrupted"] else 0
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="stickslip", description="The stick-slip manipulator FMU from Python.")
+    sub = p.add_subparsers(dest="command", required=True)
+    from . import bench, simulate, study
+
+    s = sub.add_parser("simulate", help="the reference motion through the FMU, as CSV")
+    simulate.add_arguments(s)
+    s.set_defaults(main=simulate.main)
+    s = sub.add_parser("study", help="the source study's five cases through the FMU")
+    study.add_arguments(s)
+    s.set_defaults(main=study.main)
+    s = sub.add_parser("sweep", help="a parameter grid / Monte Carlo sample on a Dask cluster")
+    _sweep_arguments(s)
+    s.set_defaults(main=sweep_main)
+    s = sub.add_parser("bench", help="variants per second of `sweep` on 1 and 2 workers")
+    bench.add_arguments(s)
+    s.set_defaults(main=bench.main)
+    a = p.parse_args(argv)
+    return a.main(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

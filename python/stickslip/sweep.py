@@ -1,0 +1,322 @@
+"""``stickslip sweep SPEC --out DIR``: the variants of a SPEC on a Dask cluster, every row kept.
+
+* The cluster: a ``dask.distributed`` LocalCluster of ``--workers`` processes with one thread
+  each, or an existing cluster at ``--scheduler tcp://host:port``. Workers share no file system
+  with the caller: the FMU's bytes go to every worker, also to workers that join later, in a
+  worker plugin (:class:`FmuPlugin`), and each worker unpacks them once.
+* One task per variant (:func:`stickslip.variant.run_variant`), at most a few per worker
+  thread queued at a time; a task whose worker died is run again elsewhere (``retries``).
+* Results (:class:`ResultStore`): finished rows are written as parquet part files in
+  ``DIR/parts/`` every few seconds, and ``DIR/results.parquet`` is consolidated from them
+  at the end, also after Ctrl-C or a lost scheduler. ``DIR/sweep.json`` records what the
+  results belong to (the SPEC's hash and the FMU's); rerunning the same command runs only
+  the variants without a row, another SPEC or FMU into the same DIR is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+from distributed import WorkerPlugin
+
+from .fmu import content_hash, model_description
+from .motion import TableMotion, reference_inputs
+from .spec import Spec, SpecError, check_against
+from .variant import metric_names, plugin_name, run_variant
+
+FLUSH_SECONDS = 5.0  # a part file at least this often while rows come in
+FLUSH_ROWS = 500  # ... or when this many rows are waiting
+WORKER_WAIT = 120.0  # s to wait for the first worker of a cluster
+LOST = "lost"  # status of a variant whose task failed outside the FMU: run again on a rerun
+
+
+class SweepError(RuntimeError):
+    """A sweep that cannot start or continue; the message says why and what to do."""
+
+
+class FmuPlugin(WorkerPlugin):
+    """Carries the FMU's bytes to every worker (also to those that join later) and unpacks
+    them there once, when the worker starts or when the plugin is registered."""
+
+    def __init__(self, data: bytes, digest: str):
+        self.data = data
+        self.digest = digest
+        self.name = plugin_name(digest)
+
+    def setup(self, worker=None):
+        from .fmu import unpacked
+
+        unpacked(self.data, self.digest)
+
+
+class ResultStore:
+    """The rows of one sweep in DIR: part files, the consolidated results.parquet, sweep.json."""
+
+    def __init__(self, out: Path, spec: Spec, fmu_digest: str, columns: list):
+        import pyarrow as pa
+
+        self.out = Path(out)
+        self.parts = self.out / "parts"
+        self.record = {"spec_sha256": spec.digest(), "fmu_sha256": fmu_digest, "spec": spec.canonical(),
+                       "variants": len(spec)}
+        meta = self.out / "sweep.json"
+        if meta.exists():
+            old = json.loads(meta.read_text(encoding="utf-8"))
+            if old.get("fmu_sha256") != fmu_digest:
+                raise SweepError(f"{self.out} holds results of another FMU (sha256 {old.get('fmu_sha256', '?')[:12]}, "
+                                 f"now {fmu_digest[:12]}); use another --out, or remove {self.out}")
+            if old.get("spec_sha256") != self.record["spec_sha256"]:
+                changed = sorted(k for k in set(old.get("spec", {})) | set(self.record["spec"])
+                                 if old.get("spec", {}).get(k) != self.record["spec"].get(k))
+                raise SweepError(f"{self.out} holds results of another SPEC (changed: {', '.join(changed)}); "
+                                 f"use another --out, or remove {self.out} to start over")
+        try:
+            self.parts.mkdir(parents=True, exist_ok=True)
+            meta.write_text(json.dumps(self.record, indent=1), encoding="utf-8")
+        except OSError as e:
+            raise SweepError(f"cannot write the results into {self.out}: {e.strerror}") from None
+        types = {"run": pa.int64(), "status": pa.string(), "message": pa.string(), "worker": pa.string(),
+                 "finished": pa.timestamp("us", tz="UTC")}
+        self.schema = pa.schema([(c, types.get(c, pa.float64())) for c in columns])
+        self.waiting = []
+        self.last_flush = time.monotonic()
+        self.session = f"{datetime.now(timezone.utc):%Y%m%dT%H%M%S}-{os.getpid()}"
+        self.written = 0
+
+    def rows(self):
+        """Every row in the part files, the last one per run (a pandas DataFrame, by run)."""
+        import pandas as pd
+        import pyarrow.parquet as pq
+
+        tables = [pq.read_table(f, schema=self.schema) for f in sorted(self.parts.glob("*.parquet"))]
+        if not tables:
+            return pd.DataFrame({f.name: pd.Series(dtype=f.type.to_pandas_dtype()) for f in self.schema})
+        import pyarrow as pa
+
+        df = pa.concat_tables(tables).to_pandas()
+        return df.sort_values(["run", "finished"]).drop_duplicates("run", keep="last").reset_index(drop=True)
+
+    def done(self) -> set:
+        """Run ids with a row that is not :data:`LOST`."""
+        df = self.rows()
+        return set(int(r) for r in df.loc[df["status"] != LOST, "run"])
+
+    def add(self, row: dict) -> None:
+        self.waiting.append(row | {"finished": datetime.now(timezone.utc)})
+        if len(self.waiting) >= FLUSH_ROWS or time.monotonic() - self.last_flush >= FLUSH_SECONDS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Writes the waiting rows as one part file (written whole, then renamed into place)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self.last_flush = time.monotonic()
+        if not self.waiting:
+            return
+        self.written += 1
+        name = self.parts / f"part-{self.session}-{self.written:05d}.parquet"
+        tmp = name.with_suffix(".tmp")
+        pq.write_table(pa.Table.from_pylist(self.waiting, schema=self.schema), tmp)
+        os.replace(tmp, name)
+        self.waiting = []
+
+    def consolidate(self):
+        """DIR/results.parquet from every part file; returns its rows."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self.flush()
+        df = self.rows()
+        tmp = self.out / "results.parquet.tmp"
+        pq.write_table(pa.Table.from_pandas(df, schema=self.schema, preserve_index=False), tmp)
+        os.replace(tmp, self.out / "results.parquet")
+        return df
+
+
+class Progress:
+    """done / failed / running / rate / ETA: a tqdm bar on a terminal, else a line per 10 %."""
+
+    def __init__(self, total: int, already: int, tty: bool | None = None, stream=sys.stderr):
+        self.total, self.already, self.stream = total, already, stream
+        self.done = self.failed = 0
+        self.start = time.monotonic()
+        self.tty = stream.isatty() if tty is None else tty
+        self.next_tenth = 1
+        self.bar = None
+        if self.tty:
+            from tqdm import tqdm
+
+            # a terminal that reports no size (0 x 0) gets 100 x 24: tqdm would draw nothing
+            size = shutil.get_terminal_size((100, 24))
+            self.bar = tqdm(total=total, initial=already, unit="variant", file=stream, smoothing=0.05,
+                            ncols=size.columns, nrows=size.lines or 24)
+
+    def update(self, status: str, running: int) -> None:
+        self.done += 1
+        self.failed += status != "ok"
+        if self.bar is not None:
+            self.bar.set_postfix(failed=self.failed, running=running, refresh=False)
+            self.bar.update(1)
+            return
+        todo = self.total - self.already
+        tenth = self.done * 10 // todo
+        if tenth >= self.next_tenth:
+            elapsed = time.monotonic() - self.start
+            rate = self.done / elapsed if elapsed > 0 else float("nan")
+            eta = (todo - self.done) / rate if rate > 0 else float("nan")
+            print(f"sweep: {10 * tenth:3d} % ({self.already + self.done}/{self.total} done, "
+                  f"{self.failed} not ok, {running} running), {rate:.2f} variants/s, ETA {eta:.0f} s",
+                  file=self.stream, flush=True)
+            self.next_tenth = tenth + 1
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _motion(spec: Spec, md):
+    if spec.motion == "reference":
+        return reference_inputs
+    joints = sum(1 for v in md.modelVariables if v.causality == "input" and v.name.startswith("q_star["))
+    try:
+        return TableMotion.from_csv(spec.motion, joints)
+    except ValueError as e:
+        raise SpecError(str(e)) from None
+
+
+def prepare(spec: Spec, out) -> tuple:
+    """Everything checked before a worker is asked for anything: (FMU bytes, its hash, the
+    motion, the store). Raises :class:`SpecError` or :class:`SweepError` naming the problem."""
+    data = spec.fmu.read_bytes()
+    digest = content_hash(data)
+    try:
+        md = model_description(data)
+    except Exception as e:  # noqa: BLE001 -- any unreadable FMU
+        raise SpecError(f"fmu {spec.fmu}: not a readable FMU ({e})") from None
+    check_against(spec, md)
+    motion = _motion(spec, md)
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    missing = [n for n in ("eps", "Q_friction", "W_drive") if n not in outputs]
+    if missing:
+        raise SpecError(f"fmu {spec.fmu}: has no output(s) {missing} for the metrics")
+    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metric_names(outputs)
+               + ["worker", "finished"])
+    return data, digest, motion, ResultStore(Path(out), spec, digest, columns)
+
+
+def _client(scheduler: str | None, workers: int | None):
+    """(client, cluster or None): an existing scheduler, or a LocalCluster of processes."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="20s"), None
+        except (OSError, ValueError) as e:
+            raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_sweep(spec: Spec, out, scheduler: str | None = None, workers: int | None = None,
+              timeout: float | None = None, retries: int = 2, progress_tty: bool | None = None) -> dict:
+    """Runs the variants of ``spec`` that have no row in ``out`` yet; returns {"rows": the
+    consolidated DataFrame, "ran": how many ran now, "interrupted": bool, "seconds": wall time
+    from the first task submitted to the last row, "workers": number of worker threads}."""
+    data, digest, motion, store = prepare(spec, out)
+    variants = spec.variants()
+    done = store.done()
+    todo = [i for i in range(len(variants)) if i not in done]
+    print(f"sweep: {len(variants)} variants, {len(done)} already in {store.out}, {len(todo)} to run", flush=True)
+    stats = {"ran": 0, "interrupted": False, "seconds": 0.0, "workers": 0}
+    if todo:
+        try:
+            _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
+                     progress_tty, stats)
+        except KeyboardInterrupt:
+            stats["interrupted"] = True
+            print(f"\nsweep: interrupted; {len(done) + stats['ran']} of {len(variants)} variants in {store.out}. "
+                  "Run the same command again to continue.", file=sys.stderr, flush=True)
+        finally:
+            stats["rows"] = store.consolidate()
+    else:
+        stats["rows"] = store.consolidate()
+    return stats
+
+
+def _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
+             progress_tty, stats):
+    from distributed import as_completed
+
+    client, cluster = _client(scheduler, workers)
+    progress = None
+    try:
+        client.register_plugin(FmuPlugin(data, digest), name=plugin_name(digest))
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT)
+        except TimeoutError:
+            raise SweepError(f"no worker joined the scheduler {scheduler} within {WORKER_WAIT:g} s") from None
+        threads = sum(client.nthreads().values())
+        stats["workers"] = threads
+        window = 4 * threads + 8  # tasks queued at once: enough to keep every thread busy
+        progress = Progress(len(variants), len(variants) - len(todo), progress_tty)
+        queue = iter(todo)
+        pending = {}
+
+        def submit(run):
+            f = client.submit(run_variant, digest, run, variants[run], spec.stop_time, spec.communication_step,
+                              motion, timeout, key=f"variant-{digest[:8]}-{store.record['spec_sha256'][:8]}-{run}",
+                              retries=retries, pure=False)
+            pending[f] = run
+            return f
+
+        start = time.perf_counter()
+        flow = as_completed([submit(r) for _, r in zip(range(window), queue)])
+        last_threads = time.monotonic()
+        for f in flow:
+            run = pending.pop(f)
+            try:
+                row = f.result()
+            except Exception as e:  # noqa: BLE001 -- the task, not the variant, failed
+                if _scheduler_lost(e):
+                    raise SweepError(f"lost the Dask scheduler ({type(e).__name__}: {e}); the finished rows "
+                                     f"are in {store.out}, run the same command again to continue") from None
+                row = {"run": run, **variants[run], "status": LOST, "message": f"{type(e).__name__}: {e}"}
+            store.add(row)
+            stats["ran"] += 1
+            nxt = next(queue, None)
+            if nxt is not None:
+                flow.add(submit(nxt))
+            if time.monotonic() - last_threads > 2.0:
+                threads, last_threads = sum(client.nthreads().values()), time.monotonic()
+            progress.update(row["status"], min(len(pending), threads))
+        stats["seconds"] = time.perf_counter() - start
+    finally:
+        if progress is not None:
+            progress.close()
+        store.flush()
+        try:
+            client.close(timeout=10)
+            if cluster is not None:
+                cluster.close(timeout=10)
+        except Exception:  # noqa: BLE001 -- closing after a lost scheduler
+            pass
+
+
+def _scheduler_lost(e: Exception) -> bool:
+    """A future that failed because the connection to the scheduler is gone (its futures are
+    cancelled then), not because of its task."""
+    from concurrent.futures import CancelledError
+
+    from distributed.comm.core import CommClosedError
+
+    return isinstance(e, (CancelledError, CommClosedError, OSError))
