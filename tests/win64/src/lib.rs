@@ -14,7 +14,7 @@ use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::fmi2::Fmi2Error;
 use fmi::schema::fmi2::{Causality, ScalarVariableElement};
-use fmi::traits::FmiImport;
+use fmi::traits::{FmiImport, FmiStatus};
 
 #[allow(dead_code)]
 #[path = "../../../src/motion.rs"]
