@@ -17,10 +17,6 @@
 WIN64_TARGET=x86_64-pc-windows-gnu
 WIN64_TARGET_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/win64"
 WIN64_RELEASE="$WIN64_TARGET_DIR/$WIN64_TARGET/release"
-# The DLLs the FMU's DLL may import (lower case, a `grep -x` pattern): those of
-# Windows 10/11 itself. Rust's windows-gnu target links libgcc_eh and
-# winpthread statically, so there are no mingw runtime DLLs to ship.
-WIN64_SYSTEM_DLLS='kernel32\.dll|ntdll\.dll|msvcrt\.dll|userenv\.dll|ws2_32\.dll|bcryptprimitives\.dll|api-ms-win-core-[a-z0-9-]+\.dll'
 # The DLLs the FMU's DLL may import (lower case, an extended regex matched
 # whole): Windows' own, present on every Windows 10/11 (the api-ms-win-* API
 # sets since Windows 7/8). Anything else (libgcc_s_seh-1, libwinpthread-1)
