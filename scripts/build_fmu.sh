@@ -11,10 +11,11 @@
 #      build.rs also writes modelDescription/modelDescription.xml)
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
 #      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir target/win64
-#   3. checks every binary's interface: exactly the 34 FMI 2.0 functions
-#      exported; the DLL imports Windows system DLLs only
-#   4. copies with the debug info stripped (target/fmu/stripped/): the FMU ships
-#      those, target/*/release keeps the debug info for local profiling
+#   3. copies stripped of debug info and symbol table (strip --strip-all, into
+#      target/fmu/stripped/): the FMU ships those; target/release and
+#      target/win64/…/release keep the debug info for local profiling
+#   4. checks every shipped binary's interface: exactly the 34 FMI 2.0
+#      functions exported; the DLL imports Windows system DLLs only
 #   5. package_fmu: target/fmu/StickSlipManipulator.fmu (or --out FILE) from the
 #      reference model (or --model FILE)
 #   6. fmpy.validation of the FMU, when the venv has fmpy
@@ -74,16 +75,18 @@ check_exports() {
 size() { stat -c %s "$1"; }
 
 cargo build --release --lib --bin package_fmu
-nm -D --defined-only "$LIB" | awk '$2 ~ /^[TtWwDdBbRrVviu]$/ {print $3}' | check_exports "$LIB"
-objcopy --strip-debug "$LIB" "$STRIPPED/libstick_slip_manipulator.so"
-echo "build_fmu.sh: linux64 $(size "$LIB") bytes, $(size "$STRIPPED/libstick_slip_manipulator.so") stripped"
-package_args=(--lib "$STRIPPED/libstick_slip_manipulator.so")
+SO="$STRIPPED/libstick_slip_manipulator.so"
+strip --strip-all -o "$SO" "$LIB"
+nm -D --defined-only "$SO" | awk '$2 ~ /^[TtWwDdBbRrVviu]$/ {print $3}' | check_exports "$SO"
+echo "build_fmu.sh: linux64 $(size "$LIB") bytes, $(size "$SO") stripped"
+package_args=(--lib "$SO")
 
 if [ "$win64" -eq 1 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
-    DLL="$WIN64_RELEASE/stick_slip_manipulator.dll"
     win64_cargo build --release --lib
+    DLL="$STRIPPED/StickSlipManipulator.dll"
+    x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$WIN64_RELEASE/stick_slip_manipulator.dll"
     exports=$(x86_64-w64-mingw32-objdump -p "$DLL" | sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/p' | awk 'NR > 1 && /^[[:space:]]*\[/ {print $NF}')
     printf '%s\n' "$exports" | check_exports "$DLL"
     # Imports: Windows system DLLs only (no libgcc_s, libwinpthread, libstdc++).
@@ -94,9 +97,8 @@ if [ "$win64" -eq 1 ]; then
         printf '  %s\n' $foreign >&2
         exit 1
     fi
-    x86_64-w64-mingw32-strip --strip-debug -o "$STRIPPED/StickSlipManipulator.dll" "$DLL"
-    echo "build_fmu.sh: win64 $(size "$DLL") bytes, $(size "$STRIPPED/StickSlipManipulator.dll") stripped; imports: $(echo $imports)"
-    package_args+=(--win64-lib "$STRIPPED/StickSlipManipulator.dll")
+    echo "build_fmu.sh: win64 $(size "$WIN64_RELEASE/stick_slip_manipulator.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports)"
+    package_args+=(--win64-lib "$DLL")
 fi
 
 "$TARGET_DIR/release/package_fmu" "${package_args[@]}" ${pass[@]+"${pass[@]}"}
