@@ -209,6 +209,9 @@ pub fn assert_agree(what: &str, names: &[String], actual: &[Vec<f64>], expected:
         assert!(diff.is_finite(), "{what}: {name} not finite");
         let rel = if diff == 0.0 { 0.0 } else { diff / scale };
         assert!(rel <= REL_TOL, "{what}: {name} differs by {rel:.3e} of its largest magnitude {scale:.3e}");
+        if name == "eps" {
+            eprintln!("{what}: eps (end-point error ε) differs by {rel:.3e} of its largest magnitude {scale:.3e} m");
+        }
         if rel > worst.0 {
             worst = (rel, name.clone());
         }
