@@ -103,8 +103,14 @@ if [ -d tests/win64 ]; then
     export STICKSLIP_FMU="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator.fmu"
     export STICKSLIP_XPLAT_DIR="$LOGDIR/xplat"
     win64_tests=(test --release --manifest-path tests/win64/Cargo.toml --no-fail-fast)
-    run_libtest_stage "win64-a-linux64" "$LOGDIR/win64-a.log" -- \
-        cargo "${win64_tests[@]}" --target-dir "$WIN64_TARGET_DIR/linux-master" --test linux64
+    linux_target=(--target-dir "${CARGO_TARGET_DIR:-$ROOT/target}")   # not tests/win64/target
+    # The main crate's release profile (debug = 1): the Linux master then reuses
+    # the `fmi` crate of stage 1 from the shared target dir, and the Windows
+    # master the std that build_fmu.sh built for the DLL, instead of building
+    # them again (a profile difference cargo keeps out of the file names would
+    # make the two builds overwrite each other's artifacts each run).
+    export CARGO_PROFILE_RELEASE_DEBUG=1
+    run_libtest_stage "win64-a-linux64" "$LOGDIR/win64-a.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64
     banner "win64: the test-only wine prefix"
     if win64_wine_prefix; then
         run_libtest_stage "win64-b-wine" "$LOGDIR/win64-b.log" -- win64_cargo "${win64_tests[@]}" --test win64
@@ -113,8 +119,8 @@ if [ -d tests/win64 ]; then
         FAILED_STAGES+=("win64-b-wine")
         TOT_FAIL=$((TOT_FAIL + 1))
     fi
-    run_libtest_stage "win64-c-linux64" "$LOGDIR/win64-c.log" -- \
-        cargo "${win64_tests[@]}" --target-dir "$WIN64_TARGET_DIR/linux-master" --test linux64_after_win64
+    run_libtest_stage "win64-c-linux64" "$LOGDIR/win64-c.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_after_win64
+    unset CARGO_PROFILE_RELEASE_DEBUG
 fi
 
 # ---- 5. Python tests ------------------------------------------------------------
