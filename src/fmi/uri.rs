@@ -119,8 +119,17 @@ mod tests {
     use super::{local_path, resource_path, PathSyntax};
     use std::path::PathBuf;
 
+    /// The path in Unix syntax (the tests of both syntaxes run on every host).
     fn ok(uri: &str) -> PathBuf {
-        resource_path(uri).unwrap_or_else(|e| panic!("{uri}: {e}"))
+        let bytes = local_path(uri, PathSyntax::Unix).unwrap_or_else(|e| panic!("{uri}: {e}"));
+        PathBuf::from(String::from_utf8(bytes).expect("UTF-8"))
+    }
+
+    #[test]
+    fn resource_path_uses_the_host_syntax() {
+        let path = resource_path("file:///C:/dir/my%20fmu/resources").expect("a valid URI");
+        let expected = if cfg!(windows) { "C:/dir/my fmu/resources" } else { "/C:/dir/my fmu/resources" };
+        assert_eq!(path, PathBuf::from(expected));
     }
 
     #[test]
@@ -166,7 +175,7 @@ mod tests {
             "file:///tmp/r?x=1",
             "file:///tmp/r#frag",
         ] {
-            let err = resource_path(uri).expect_err(uri);
+            let err = local_path(uri, PathSyntax::Unix).expect_err(uri);
             assert!(!err.is_empty(), "{uri}");
         }
     }
