@@ -96,7 +96,8 @@ fi
 # motion on Linux against binaries/linux64 (a), then, compiled for
 # x86_64-pc-windows-gnu and run under wine, against binaries/win64 of the same
 # .fmu (b), then restores on Linux the state win64 serialized (c); see
-# tests/win64/Cargo.toml. Missing wine or a missing win64 binary fail the stage.
+# tests/win64/Cargo.toml. Also the main crate's unit tests, compiled for Windows,
+# under wine. Missing wine or a missing win64 binary fail the stage.
 if [ -d tests/win64 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
@@ -114,6 +115,10 @@ if [ -d tests/win64 ]; then
     banner "win64: the test-only wine prefix"
     if win64_wine_prefix; then
         run_libtest_stage "win64-b-wine" "$LOGDIR/win64-b.log" -- win64_cargo "${win64_tests[@]}" --test win64
+        # The engine's own unit tests on Windows: the C boundary's catch_unwind
+        # (a panic leaves the instance in the error state), the Windows resource
+        # URI through the real Windows code path, the FMI layer's call checks.
+        run_libtest_stage "win64-lib-wine" "$LOGDIR/win64-lib.log" -- win64_cargo test --release --lib --no-fail-fast
     else
         SUMMARY+=("win64-b-wine: FAILED (no wine prefix)")
         FAILED_STAGES+=("win64-b-wine")
