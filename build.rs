@@ -37,7 +37,9 @@ fn main() {
     }
     // fmi-sys compiles an exported `callback_log` helper into the crate; only
     // our own `fmi2…` functions may be visible to FMI importers. Symbols of
-    // static archives (all dependencies are rlibs) stay local.
+    // static archives (all dependencies are rlibs) stay local. GNU ld for
+    // Windows ignores this for the .def export list rustc writes; there
+    // scripts/mingw-link.sh (the win64 linker) cuts that list instead.
     println!("cargo:rustc-cdylib-link-arg=-Wl,--exclude-libs,ALL");
 
     let text = model::REFERENCE_RRPR_TOML;

@@ -14,6 +14,9 @@
 #   * the package `stickslip` of pyproject.toml (python/stickslip, command
 #     `stickslip`) is installed into the venv in editable mode; re-installed
 #     only when pyproject.toml changes (stamp kept in the venv).
+#   * the Debian packages of the win64 cross-build and its wine tests are
+#     installed (apt-get when missing): rustc-web, cargo-web, rust-web-src,
+#     gcc-mingw-w64-x86-64, wine64, wine (see _stickslip_ensure_win64_packages).
 #   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
 #
 # Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
@@ -21,7 +24,7 @@
 # Running it as `bash scripts/env.sh` performs the installs (exports are lost).
 #
 # Knobs: STICKSLIP_VENV (venv dir), PYTHON (base interpreter, default python3),
-#        STICKSLIP_SKIP_APT=1 (never call apt-get; just warn if libclang missing).
+#        STICKSLIP_SKIP_APT=1 (never call apt-get; just warn if packages are missing).
 
 _stickslip_log() { printf 'env.sh: %s\n' "$*" >&2; }
 
@@ -47,8 +50,49 @@ _stickslip_find_libclang_dir() {
     return 1
 }
 
+_stickslip_apt_install() {
+    # apt-get install of the Debian packages given (as root, or through sudo -n).
+    local sudo=""
+    if ! command -v apt-get >/dev/null 2>&1; then
+        _stickslip_log "ERROR: apt-get unavailable; install the Debian packages $* by other means"
+        return 1
+    fi
+    if [ "$(id -u)" -ne 0 ]; then
+        if command -v sudo >/dev/null 2>&1; then
+            sudo="sudo -n"
+        else
+            _stickslip_log "ERROR: not root and no sudo: run 'apt-get install $*' as root"
+            return 1
+        fi
+    fi
+    _stickslip_log "installing Debian packages $* (apt-get)..."
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q </dev/null >&2 || {
+        _stickslip_log "ERROR: apt-get update failed"; return 1; }
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "$@" </dev/null >&2 || {
+        _stickslip_log "ERROR: apt-get install $* failed"; return 1; }
+}
+
+_stickslip_ensure_win64_packages() {
+    # The win64 cross-build and its tests (scripts/win64.sh, README "Platforms"):
+    #   rustc-web, cargo-web   Debian's Rust (/usr/bin/rustc, /usr/bin/cargo),
+    #                          which may build std itself (-Zbuild-std)
+    #   rust-web-src           the sources of that std
+    #   gcc-mingw-w64-x86-64   the Windows linker and C runtime (mingw-w64)
+    #   wine64, wine           runs the Windows test programs (scripts/test.sh)
+    local pkgs="rustc-web cargo-web rust-web-src gcc-mingw-w64-x86-64 wine64 wine" missing
+    missing=$(dpkg-query -W -f='${Status} ${Package}\n' $pkgs 2>/dev/null |
+        awk '$3 == "installed" {ok[$4] = 1} END {n = split("'"$pkgs"'", p, " "); for (i = 1; i <= n; i++) if (!ok[p[i]]) printf "%s ", p[i]}')
+    [ -z "$missing" ] && return 0
+    if [ "${STICKSLIP_SKIP_APT:-0}" = 1 ]; then
+        _stickslip_log "WARNING: missing $missing and STICKSLIP_SKIP_APT=1; the win64 build and tests will fail"
+        return 0
+    fi
+    # shellcheck disable=SC2086
+    _stickslip_apt_install $missing || return 1
+}
+
 _stickslip_ensure_libclang() {
-    local dir sudo=""
+    local dir
     if dir=$(_stickslip_find_libclang_dir); then
         export LIBCLANG_PATH="$dir"
         return 0
@@ -57,23 +101,8 @@ _stickslip_ensure_libclang() {
         _stickslip_log "WARNING: libclang not found and STICKSLIP_SKIP_APT=1; bindgen (fmi-sys) will fail"
         return 0
     fi
-    if ! command -v apt-get >/dev/null 2>&1; then
-        _stickslip_log "ERROR: libclang not found and apt-get unavailable; install libclang (>= 9) and set LIBCLANG_PATH"
-        return 1
-    fi
-    if [ "$(id -u)" -ne 0 ]; then
-        if command -v sudo >/dev/null 2>&1; then
-            sudo="sudo -n"
-        else
-            _stickslip_log "ERROR: libclang missing, not root and no sudo: run 'apt-get install libclang-dev' as root"
-            return 1
-        fi
-    fi
-    _stickslip_log "libclang not found: installing Debian package libclang-dev (apt-get)..."
-    $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q </dev/null >&2 || {
-        _stickslip_log "ERROR: apt-get update failed"; return 1; }
-    $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends libclang-dev </dev/null >&2 || {
-        _stickslip_log "ERROR: apt-get install libclang-dev failed"; return 1; }
+    _stickslip_log "libclang not found"
+    _stickslip_apt_install libclang-dev || return 1
     if dir=$(_stickslip_find_libclang_dir); then
         export LIBCLANG_PATH="$dir"
         _stickslip_log "libclang installed; LIBCLANG_PATH=$dir"
@@ -134,6 +163,7 @@ _stickslip_env_main() {
     # NB: functions called in a `||` list run with `set -e` disabled, hence the
     # explicit `|| return 1` on every step inside them.
     _stickslip_ensure_libclang || return 1
+    _stickslip_ensure_win64_packages || return 1
     _stickslip_ensure_venv "$root" "$venv" || return 1
 
     export VIRTUAL_ENV="$venv"
@@ -151,7 +181,7 @@ else
     _stickslip_env_rc=1
     _stickslip_log "environment setup FAILED"
 fi
-unset -f _stickslip_env_main _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_find_libclang_dir _stickslip_log
+unset -f _stickslip_env_main _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
 # `return` when sourced, `exit` when run as a script.
 if [ "$_stickslip_env_rc" -eq 0 ]; then
     unset _stickslip_env_rc

@@ -4,7 +4,9 @@
 #   1. cargo test --release --all-targets --no-fail-fast  (release: physics tests are heavy)
 #   2. cargo test --release --doc           (doc tests; only if there is a lib target)
 #   3. FMU packaging hook: scripts/build_fmu.sh, if it exists
-#   4. pytest tests/python                  (if it holds test files; `slow` tests are
+#   4. win64 tests (tests/win64): the FMU's Windows DLL under wine against the
+#      linux64 .so (scripts/win64.sh)
+#   5. pytest tests/python                  (if it holds test files; `slow` tests are
 #                                            deselected, see tests/python/conftest.py;
 #                                            exit 5 "no tests collected" counts as ok)
 #
@@ -44,11 +46,17 @@ cargo_counts() {
 
 # run_cargo_stage NAME LOG -- cargo args...
 run_cargo_stage() {
+    run_libtest_stage "$1" "$2" -- cargo "${@:4}"
+}
+
+# run_libtest_stage NAME LOG -- COMMAND args...   (a command whose output has
+# libtest's "test result:" lines, e.g. cargo test or win64_cargo test)
+run_libtest_stage() {
     local name="$1" log="$2" rc p f g
     shift 3
-    banner "$name: cargo $*"
+    banner "$name: $*"
     set +e
-    cargo "$@" 2>&1 | tee "$log"
+    "$@" 2>&1 | tee "$log"
     rc=${PIPESTATUS[0]}
     set -e
     read -r p f g < <(cargo_counts "$log")
@@ -83,7 +91,44 @@ if [ -f scripts/build_fmu.sh ]; then
     fi
 fi
 
-# ---- 4. Python tests ------------------------------------------------------------
+# ---- 4. win64: the FMU's Windows binary under wine -------------------------------
+# tests/win64 (its own package): the `fmi` crate as master runs the reference
+# motion on Linux against binaries/linux64 (a), then, compiled for
+# x86_64-pc-windows-gnu and run under wine, against binaries/win64 of the same
+# .fmu (b), then restores on Linux the state win64 serialized (c); see
+# tests/win64/Cargo.toml. Also the main crate's unit tests, compiled for Windows,
+# under wine. Missing wine or a missing win64 binary fail the stage.
+if [ -d tests/win64 ]; then
+    # shellcheck source=scripts/win64.sh
+    source scripts/win64.sh
+    export STICKSLIP_FMU="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator.fmu"
+    export STICKSLIP_XPLAT_DIR="$LOGDIR/xplat"
+    win64_tests=(test --release --manifest-path tests/win64/Cargo.toml --no-fail-fast)
+    linux_target=(--target-dir "${CARGO_TARGET_DIR:-$ROOT/target}")   # not tests/win64/target
+    # The main crate's release profile (debug = 1): the Linux master then reuses
+    # the `fmi` crate of stage 1 from the shared target dir, and the Windows
+    # master the std that build_fmu.sh built for the DLL, instead of building
+    # them again (a profile difference cargo keeps out of the file names would
+    # make the two builds overwrite each other's artifacts each run).
+    export CARGO_PROFILE_RELEASE_DEBUG=1
+    run_libtest_stage "win64-a-linux64" "$LOGDIR/win64-a.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64
+    banner "win64: the test-only wine prefix"
+    if win64_wine_prefix; then
+        run_libtest_stage "win64-b-wine" "$LOGDIR/win64-b.log" -- win64_cargo "${win64_tests[@]}" --test win64
+        # The engine's own unit tests on Windows: the C boundary's catch_unwind
+        # (a panic leaves the instance in the error state), the Windows resource
+        # URI through the real Windows code path, the FMI layer's call checks.
+        run_libtest_stage "win64-lib-wine" "$LOGDIR/win64-lib.log" -- win64_cargo test --release --lib --no-fail-fast
+    else
+        SUMMARY+=("win64-b-wine: FAILED (no wine prefix)")
+        FAILED_STAGES+=("win64-b-wine")
+        TOT_FAIL=$((TOT_FAIL + 1))
+    fi
+    run_libtest_stage "win64-c-linux64" "$LOGDIR/win64-c.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_after_win64
+    unset CARGO_PROFILE_RELEASE_DEBUG
+fi
+
+# ---- 5. Python tests ------------------------------------------------------------
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python $*"
     set +e

@@ -1,16 +1,19 @@
 //! Packs an FMI 2.0 co-simulation FMU from a model file.
 //!
-//! Usage: package_fmu [--model FILE] [--lib FILE] [--out FILE]
+//! Usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE]
 //!
 //! * `--model`: the model file (TOML) the FMU runs; default: the reference
 //!   manipulator, `models/reference_rrpr.toml` as compiled into the crate.
-//! * `--lib`: the release cdylib; default `libstick_slip_manipulator.so`
+//! * `--lib`: the linux64 release cdylib; default `libstick_slip_manipulator.so`
 //!   next to this executable (`cargo build --release` puts both there).
+//! * `--win64-lib`: the win64 DLL (`scripts/build_fmu.sh` cross-builds it);
+//!   without it the FMU has no win64 binary.
 //! * `--out`: the `.fmu`; default `<target>/fmu/StickSlipManipulator.fmu`,
 //!   `<target>` being the directory above this executable's.
 //!
 //! The FMU holds `modelDescription.xml` (written for the model by the same
-//! code as `build.rs` uses), `binaries/linux64/StickSlipManipulator.so` and
+//! code as `build.rs` uses), `binaries/linux64/StickSlipManipulator.so`,
+//! `binaries/win64/StickSlipManipulator.dll` when given, and
 //! `resources/model.toml` (the model file as given, which the FMU reads at
 //! fmi2Instantiate and whose text the GUID is derived from).
 
@@ -33,6 +36,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let exe_dir = std::env::current_exe()?.parent().map(Path::to_path_buf).ok_or("no directory of the executable")?;
     let mut model_path: Option<PathBuf> = None;
     let mut lib = exe_dir.join("libstick_slip_manipulator.so");
+    let mut win64_lib: Option<PathBuf> = None;
     let mut out = exe_dir.parent().unwrap_or(&exe_dir).join("fmu").join(format!("{MODEL_IDENTIFIER}.fmu"));
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -40,14 +44,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         match a.as_str() {
             "--model" => model_path = Some(value()?),
             "--lib" => lib = value()?,
+            "--win64-lib" => win64_lib = Some(value()?),
             "--out" => out = value()?,
             "-h" | "--help" => {
-                println!("usage: package_fmu [--model FILE] [--lib FILE] [--out FILE]");
+                println!("usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE]");
                 return Ok(());
             }
             _ => {
                 return Err(format!(
-                    "unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--out FILE])"
+                    "unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE])"
                 )
                 .into())
             }
@@ -59,8 +64,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     };
     let model = Model::from_toml_str(&text)
         .map_err(|e| format!("{}: {e}", model_path.as_deref().unwrap_or(Path::new("reference model")).display()))?;
-    let binary = std::fs::read(&lib)
-        .map_err(|e| format!("cannot read the library {}: {e} (run `cargo build --release` first)", lib.display()))?;
+    let mut binaries = vec![(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), read_library(&lib)?)];
+    if let Some(dll) = &win64_lib {
+        binaries.push((format!("binaries/win64/{MODEL_IDENTIFIER}.dll"), read_library(dll)?));
+    }
     let xml = model_description_xml(&model, &text);
 
     if let Some(dir) = out.parent() {
@@ -75,12 +82,25 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .last_modified_time(DateTime::default());
     zip.start_file("modelDescription.xml", options)?;
     zip.write_all(xml.as_bytes())?;
-    zip.start_file(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), options.unix_permissions(0o755))?;
-    zip.write_all(&binary)?;
+    for (name, binary) in &binaries {
+        zip.start_file(name.as_str(), options.unix_permissions(0o755))?;
+        zip.write_all(binary)?;
+    }
     zip.start_file("resources/model.toml", options)?;
     zip.write_all(text.as_bytes())?;
     zip.finish()?;
     std::fs::rename(&partial, &out)?;
-    eprintln!("package_fmu: wrote {} (model `{}`, {} joints)", out.display(), model.name, model.nq());
+    let platforms: Vec<&str> = binaries.iter().filter_map(|(name, _)| name.split('/').nth(1)).collect();
+    eprintln!(
+        "package_fmu: wrote {} (model `{}`, {} joints; platforms {})",
+        out.display(),
+        model.name,
+        model.nq(),
+        platforms.join(", ")
+    );
     Ok(())
+}
+
+fn read_library(path: &Path) -> Result<Vec<u8>, String> {
+    std::fs::read(path).map_err(|e| format!("cannot read the library {}: {e} (run `scripts/build_fmu.sh`)", path.display()))
 }
