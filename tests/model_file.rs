@@ -470,6 +470,11 @@ fn mass_ceiling_is_1e6_kg() {
     let at = edit_joint(2, "mass = 15.0", "mass = 1.0e6");
     assert_eq!(Model::from_toml_str(&at).unwrap().links[1].mass, 1e6);
     assert_ceiling(&edit_joint(2, "mass = 15.0", "mass = 1e300"), "joint[2].link.mass", 1e300, "(0, 1e6]", &at);
+    // The value in short form, as the README quotes it (not the 301 digits of `{}`).
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = 1e300"));
+    assert_eq!(e.to_string(), "`joint[2].link.mass` = 1e300: must be positive and at most 1e6: (0, 1e6]");
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = -15.0"));
+    assert_eq!(e.to_string(), "`joint[2].link.mass` = -15: must be positive and at most 1e6: (0, 1e6]");
     assert_ceiling(&edit_joint(2, "mass = 15.0", "mass = 1.0000001e6"), "joint[2].link.mass", 1.0000001e6, "(0, 1e6]", &at);
     // The smallest double above the ceiling.
     let next = f64::from_bits(1e6f64.to_bits() + 1);

@@ -204,8 +204,9 @@ impl std::fmt::Display for Range {
     }
 }
 
-/// A bound as people write it: 2, 0.5, 1e-3, 1e12.
-fn number(x: f64) -> String {
+/// A bound or value as people write it: 2, 0.5, 1e-3, 1e12, 1e300 (not the
+/// 301 digits of `{}`).
+pub(crate) fn number(x: f64) -> String {
     if x == 0.0 || (1e-2..1e4).contains(&x.abs()) {
         format!("{x}")
     } else {
