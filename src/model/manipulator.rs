@@ -200,7 +200,8 @@ pub const INPUT_RANGES: [(&str, Range); 3] =
 impl std::fmt::Display for Range {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let open = if self.min_excluded { '(' } else { '[' };
-        write!(f, "{open}{}, {}]", number(self.min), number(self.max))
+        let close = if self.max.is_infinite() { ')' } else { ']' };
+        write!(f, "{open}{}, {}{close}", number(self.min), number(self.max))
     }
 }
 

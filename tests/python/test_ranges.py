@@ -45,7 +45,7 @@ from helpers import INTERVAL, Slave, fmu_path, input_vector, model_description
 # README's range table, `Range::positive` and the settings' exclusive bounds.
 EXCLUSIVE_MIN = {"k", "slider_a", "m", "error_tolerance", "tolerance"}
 
-# "[-1000, 1000]", "(0, 1e6]", "[0.000000001, 0.01]": an interval as the FMU writes one.
+# "[-1000, 1000]", "(0, 1e6]", "[1e-9, 0.01]": an interval as the FMU writes one.
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _INTERVAL = re.compile(rf"([\[(])\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\]")
 

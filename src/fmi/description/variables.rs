@@ -184,15 +184,12 @@ impl Setting {
 
     /// Checks `value` against the setting's range.
     pub fn check(self, value: f64) -> Result<(), String> {
-        let (min, max, exclusive) = self.bounds();
-        let above = if exclusive { value > min } else { value >= min };
-        let below = max.is_none_or(|m| value <= m);
-        if value.is_finite() && above && below {
+        let (min, max, min_excluded) = self.bounds();
+        let range = Range { min, max: max.unwrap_or(f64::INFINITY), min_excluded };
+        if value.is_finite() && range.contains(value) {
             return Ok(());
         }
-        let low = if exclusive { format!("({min}") } else { format!("[{min}") };
-        let high = max.map_or("inf)".to_string(), |m| format!("{m}]"));
-        Err(format!("`{}` = {value} is out of its range {low}, {high}", self.name()))
+        Err(format!("`{}` = {} is out of its range {range}", self.name(), crate::model::number(value)))
     }
 }
 
