@@ -19,7 +19,7 @@ pub enum ModelError {
         reason: String,
     },
     /// A numeric parameter is out of its range.
-    #[error("`{field}` = {value}: {reason}")]
+    #[error("`{field}` = {}: {reason}", crate::model::number(*.value))]
     InvalidParameter {
         /// The field, e.g. `joint[3].drive.k`.
         field: String,

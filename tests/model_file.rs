@@ -446,6 +446,135 @@ fn integrator_settings_are_checked() {
     assert_invalid_parameter(&e, "integrator.max_iterations", 0.0, "1..=10000");
 }
 
+// ---------------------------------------------------------------------------
+// Ceilings: a value just above the largest admissible one is refused with the
+// field and its range; the value exactly at the ceiling loads.
+// ---------------------------------------------------------------------------
+
+/// `over` is refused: `InvalidParameter` for `field` with `value`, whose
+/// reason and message show the admissible `range` (e.g. `(0, 1e6]`); `at`
+/// (the same edit with the ceiling itself) loads and validates.
+#[track_caller]
+fn assert_ceiling(over: &str, field: &str, value: f64, range: &str, at: &str) {
+    let e = rejected(over);
+    assert_invalid_parameter(&e, field, value, range);
+    let message = e.to_string();
+    assert!(message.contains(range), "message does not show the range `{range}`: {message}");
+    assert!(message.contains("at most"), "message does not say `at most`: {message}");
+    let model = Model::from_toml_str(at).unwrap_or_else(|e| panic!("the value at the ceiling of `{field}` is refused: {e}"));
+    model.validate().unwrap_or_else(|e| panic!("the value at the ceiling of `{field}` does not validate: {e}"));
+}
+
+#[test]
+fn mass_ceiling_is_1e6_kg() {
+    let at = edit_joint(2, "mass = 15.0", "mass = 1.0e6");
+    assert_eq!(Model::from_toml_str(&at).unwrap().links[1].mass, 1e6);
+    assert_ceiling(&edit_joint(2, "mass = 15.0", "mass = 1e300"), "joint[2].link.mass", 1e300, "(0, 1e6]", &at);
+    // The value in short form, as the README quotes it (not the 301 digits of `{}`).
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = 1e300"));
+    assert_eq!(e.to_string(), "`joint[2].link.mass` = 1e300: must be positive and at most 1e6: (0, 1e6]");
+    let e = rejected(&edit_joint(2, "mass = 15.0", "mass = -15.0"));
+    assert_eq!(e.to_string(), "`joint[2].link.mass` = -15: must be positive and at most 1e6: (0, 1e6]");
+    assert_ceiling(&edit_joint(2, "mass = 15.0", "mass = 1.0000001e6"), "joint[2].link.mass", 1.0000001e6, "(0, 1e6]", &at);
+    // The smallest double above the ceiling.
+    let next = f64::from_bits(1e6f64.to_bits() + 1);
+    let text = edit_joint(2, "mass = 15.0", &format!("mass = {next:?}"));
+    assert_ceiling(&text, "joint[2].link.mass", next, "(0, 1e6]", &at);
+}
+
+#[test]
+fn stiffness_ceiling_is_1e12() {
+    let at = edit_joint(3, "k = 1.0e6", "k = 1.0e12");
+    assert_ceiling(&edit_joint(3, "k = 1.0e6", "k = 1.0e13"), "joint[3].drive.k", 1e13, "(0, 1e12]", &at);
+    let next = f64::from_bits(1e12f64.to_bits() + 1);
+    assert_ceiling(&edit_joint(3, "k = 1.0e6", &format!("k = {next:?}")), "joint[3].drive.k", next, "(0, 1e12]", &at);
+}
+
+#[test]
+fn damping_ceiling_is_1e9() {
+    let at = edit_joint(1, "h = 0.0", "h = 1.0e9");
+    assert_ceiling(&edit_joint(1, "h = 0.0", "h = 1.0e10"), "joint[1].drive.h", 1e10, "[0, 1e9]", &at);
+}
+
+#[test]
+fn clearance_ceiling_is_1() {
+    let at = edit_joint(3, "clearance = 0.0", "clearance = 1.0");
+    assert_ceiling(&edit_joint(3, "clearance = 0.0", "clearance = 2.0"), "joint[3].drive.clearance", 2.0, "[0, 1]", &at);
+}
+
+#[test]
+fn friction_ceilings_are_2_and_1000() {
+    let at = edit_joint(1, "mu_k = 0.2, mu_s = 0.2", "mu_k = 2.0, mu_s = 2.0");
+    let over = edit_joint(1, "mu_k = 0.2, mu_s = 0.2", "mu_k = 0.2, mu_s = 3.0");
+    assert_ceiling(&over, "joint[1].friction.mu_s", 3.0, "[0, 2]", &at);
+    let over = edit_joint(1, "mu_k = 0.2, mu_s = 0.2", "mu_k = 3.0, mu_s = 3.0");
+    assert_ceiling(&over, "joint[1].friction.mu_k", 3.0, "[0, 2]", &at);
+
+    let at = edit_joint(3, "v_s = 0.0", "v_s = 1000.0");
+    assert_ceiling(&edit_joint(3, "v_s = 0.0", "v_s = 1001.0"), "joint[3].friction.v_s", 1001.0, "[0, 1000]", &at);
+}
+
+#[test]
+fn contact_length_ceiling_is_100_m() {
+    // Slider of joint 3: a is positive, b and c may be 0.
+    let at = edit_joint(3, "a = 0.2, b = 0.07, c = 0.07", "a = 100.0, b = 100.0, c = 100.0");
+    assert_ceiling(&edit_joint(3, "a = 0.2, b", "a = 101.0, b"), "joint[3].slider.a", 101.0, "(0, 100]", &at);
+    assert_ceiling(&edit_joint(3, "b = 0.07", "b = 101.0"), "joint[3].slider.b", 101.0, "[0, 100]", &at);
+    assert_ceiling(&edit_joint(3, "c = 0.07", "c = 101.0"), "joint[3].slider.c", 101.0, "[0, 100]", &at);
+
+    // Bearings of joint 1.
+    let at = edit_joint(
+        1,
+        "l_a = 0.06, l_b = 0.06, d_a = 0.1, d_b = 0.1, d_c = 0.1",
+        "l_a = 100.0, l_b = 100.0, d_a = 100.0, d_b = 100.0, d_c = 100.0",
+    );
+    let cases = [
+        ("l_a = 0.06", "l_a = 101.0", "joint[1].bearings.l_a"),
+        ("l_b = 0.06", "l_b = 101.0", "joint[1].bearings.l_b"),
+        ("d_a = 0.1", "d_a = 101.0", "joint[1].bearings.d_a"),
+        ("d_b = 0.1", "d_b = 101.0", "joint[1].bearings.d_b"),
+        ("d_c = 0.1", "d_c = 101.0", "joint[1].bearings.d_c"),
+    ];
+    for (from, to, field) in cases {
+        assert_ceiling(&edit_joint(1, from, to), field, 101.0, "[0, 100]", &at);
+    }
+}
+
+#[test]
+fn inertia_ceiling_is_1e9() {
+    let at = edit_joint(4, "xx = 0.01, yy = 0.01, zz = 0.01", "xx = 1.0e9, yy = 1.0e9, zz = 1.0e9");
+    let over = edit_joint(4, "xx = 0.01, yy = 0.01, zz = 0.01", "xx = 1.0e10, yy = 1.0e10, zz = 1.0e10");
+    assert_ceiling(&over, "joint[4].link.inertia.xx", 1e10, "[-1e9, 1e9]", &at);
+    let over = edit_joint(4, "zz = 0.01", "zz = 1.0e10");
+    assert_ceiling(&over, "joint[4].link.inertia.zz", 1e10, "[-1e9, 1e9]", &at);
+    let over = edit_joint(4, "zz = 0.01 }", "zz = 0.01, xy = -1.0e10 }");
+    assert_ceiling(&over, "joint[4].link.inertia.xy", -1e10, "[-1e9, 1e9]", &at);
+}
+
+#[test]
+fn gravity_ceiling_is_1000() {
+    let at = edit("gravity = [0.0, 0.0, -9.81]", "gravity = [1000.0, 0.0, -1000.0]");
+    let over = edit("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -1.0e4]");
+    assert_ceiling(&over, "gravity[3]", -1e4, "[-1000, 1000]", &at);
+    let over = edit("gravity = [0.0, 0.0, -9.81]", "gravity = [1.0e4, 0.0, -9.81]");
+    assert_ceiling(&over, "gravity[1]", 1e4, "[-1000, 1000]", &at);
+}
+
+#[test]
+fn geometry_ceiling_is_1000() {
+    let at = edit_joint(1, "d = 0.6", "d = 1000.0");
+    assert_ceiling(&edit_joint(1, "d = 0.6", "d = 1.0e4"), "joint[1].d", 1e4, "[-1000, 1000]", &at);
+    let at = edit_joint(4, "d = 0.1", "d = -1000.0");
+    assert_ceiling(&edit_joint(4, "d = 0.1", "d = -1.0e4"), "joint[4].d", -1e4, "[-1000, 1000]", &at);
+    let at = edit_joint(2, "a = 0.0", "a = 1000.0");
+    assert_ceiling(&edit_joint(2, "a = 0.0", "a = 1001.0"), "joint[2].a", 1001.0, "[-1000, 1000]", &at);
+    let at = edit("end_point = [0.1, 0.0, 0.0]", "end_point = [1000.0, 0.0, 0.0]");
+    assert_ceiling(&edit("end_point = [0.1, 0.0, 0.0]", "end_point = [1.0e4, 0.0, 0.0]"), "end_point[1]", 1e4, "[-1000, 1000]", &at);
+    let at = edit_joint(4, "com = [0.05, 0.0, -0.05]", "com = [0.05, 0.0, -1000.0]");
+    let over = edit_joint(4, "com = [0.05, 0.0, -0.05]", "com = [0.05, 0.0, -1.0e4]");
+    assert_ceiling(&over, "joint[4].link.com[3]", -1e4, "[-1000, 1000]", &at);
+}
+
 #[test]
 fn missing_file_is_an_io_error_naming_the_path() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/does_not_exist.toml");

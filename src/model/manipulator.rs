@@ -200,12 +200,14 @@ pub const INPUT_RANGES: [(&str, Range); 3] =
 impl std::fmt::Display for Range {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let open = if self.min_excluded { '(' } else { '[' };
-        write!(f, "{open}{}, {}]", number(self.min), number(self.max))
+        let close = if self.max.is_infinite() { ')' } else { ']' };
+        write!(f, "{open}{}, {}{close}", number(self.min), number(self.max))
     }
 }
 
-/// A bound as people write it: 2, 0.5, 1e-3, 1e12.
-fn number(x: f64) -> String {
+/// A bound or value as people write it: 2, 0.5, 1e-3, 1e12, 1e300 (not the
+/// 301 digits of `{}`).
+pub(crate) fn number(x: f64) -> String {
     if x == 0.0 || (1e-2..1e4).contains(&x.abs()) {
         format!("{x}")
     } else {

@@ -11,4 +11,5 @@ pub use file::REFERENCE_RRPR_TOML;
 pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};
 pub use link::Link;
 pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS};
+pub(crate) use manipulator::number;
 pub use parameter::Parameter;

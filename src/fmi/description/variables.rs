@@ -15,7 +15,7 @@
 
 use super::hash::Fnv1a128;
 use super::outputs::{outputs, Output};
-use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, INPUT_RANGES};
+use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, Range, INPUT_RANGES};
 
 /// Causality of a variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -184,15 +184,12 @@ impl Setting {
 
     /// Checks `value` against the setting's range.
     pub fn check(self, value: f64) -> Result<(), String> {
-        let (min, max, exclusive) = self.bounds();
-        let above = if exclusive { value > min } else { value >= min };
-        let below = max.is_none_or(|m| value <= m);
-        if value.is_finite() && above && below {
+        let (min, max, min_excluded) = self.bounds();
+        let range = Range { min, max: max.unwrap_or(f64::INFINITY), min_excluded };
+        if value.is_finite() && range.contains(value) {
             return Ok(());
         }
-        let low = if exclusive { format!("({min}") } else { format!("[{min}") };
-        let high = max.map_or("inf)".to_string(), |m| format!("{m}]"));
-        Err(format!("`{}` = {value} is out of its range {low}, {high}", self.name()))
+        Err(format!("`{}` = {} is out of its range {range}", self.name(), crate::model::number(value)))
     }
 }
 
@@ -326,9 +323,22 @@ pub fn variables(model: &Model) -> Vec<Variable> {
             ),
         };
         let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };
-        b.push(s.name().into(), format!("{what}; fixed after initialization"), FIXED, ty, Quantity::Setting(s));
+        let (_, _, exclusive) = s.bounds();
+        let range = Range { min, max: max.unwrap_or(f64::INFINITY), min_excluded: exclusive };
+        let description = format!("{what}; fixed after initialization{}", excluded_min(range));
+        b.push(s.name().into(), description, FIXED, ty, Quantity::Setting(s));
     }
     b.0
+}
+
+/// For a range whose lower end is excluded (FMI 2.0's `min` is inclusive):
+/// "; range (0, 1e6]: min = 0 excluded"; empty otherwise.
+fn excluded_min(range: Range) -> String {
+    if range.min_excluded {
+        format!("; range {range}: min = {} excluded", crate::model::number(range.min))
+    } else {
+        String::new()
+    }
 }
 
 /// "joint 3 (prismatic, flexible drive)".
@@ -407,10 +417,12 @@ fn parameters(b: &mut Builder, model: &Model) {
     for p in Parameter::ALL {
         for j in 0..model.nq() {
             let Some(value) = model.parameter(p, j) else { continue };
-            let (unit, description) = parameter_meaning(model, p, j);
+            let (unit, mut description) = parameter_meaning(model, p, j);
             // The physical range (a positive parameter declares min = 0,
-            // and 0 itself is refused with its range in the message).
+            // and 0 itself is refused with its range in the message). FMI's
+            // min is inclusive, so the description says that 0 is excluded.
             let range = p.range();
+            description.push_str(&excluded_min(range));
             let ty = Type::Real { unit, min: Some(range.min), max: Some(range.max), start: Some(value) };
             b.push(format!("{}[{}]", p.name(), j + 1), description, TUNABLE, ty, Quantity::Parameter(p, j));
         }
