@@ -44,6 +44,27 @@ def write_spec(path, body: str, stop_time=0.1, step=1e-3):
     return path
 
 
+def k3_grid(n: int) -> str:
+    """A SPEC line sweeping k[3] over n values 1e6, 1e6 + 1e3, …"""
+    return '"k[3]" = [' + ", ".join(f"{1e6 + 1e3 * j:.0f}" for j in range(n)) + "]\n"
+
+
+def lines_until(proc, seen) -> list:
+    """The lines a running sweep prints, up to and including the first for which
+    `seen(line)` is true."""
+    lines = []
+    for line in proc.stdout:
+        lines.append(line)
+        if seen(line):
+            break
+    return lines
+
+
+def progressed(line: str) -> bool:
+    """A progress line: some variants are done."""
+    return "%" in line and "done" in line
+
+
 def direct_metrics(parameters: dict, stop_time: float, step: float = 1e-3) -> dict:
     """The metrics of one variant from a hand-driven fmpy run, computed here."""
     with Slave("direct") as s:
@@ -129,16 +150,11 @@ def test_seeded_samples_reproducible_across_runs_and_cluster_sizes(cluster, tmp_
 def test_worker_killed_mid_sweep_still_completes(tmp_path):
     """A cluster of its own; one of its two workers is killed (SIGKILL) once 10 % of the
     variants are done: the tasks it held run again on the other, every variant is ok."""
-    spec = write_spec(tmp_path / "kill.toml", '[grid]\n"k[3]" = [' + ", ".join(
-        f"{1e6 + 1e3 * j:.0f}" for j in range(20)) + "]\n", stop_time=0.2)
+    spec = write_spec(tmp_path / "kill.toml", "[grid]\n" + k3_grid(20), stop_time=0.2)
     out = tmp_path / "out"
     with loopback_cluster(tmp_path / "dask") as c:
         proc = sweep_process(spec, "--out", out, "--scheduler", c.address)
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if "%" in line and "done" in line:
-                break
+        lines = lines_until(proc, progressed)
         victim, _ = c.workers[0]
         victim.send_signal(signal.SIGKILL)
         victim.wait()
@@ -160,16 +176,12 @@ def test_interrupted_sweep_resumes_only_missing_variants(cluster, tmp_path):
     """SIGINT after 20 % of 20 variants: exit 130, the finished rows are in results.parquet.
     The same command again runs only the others (the first rows keep their `finished`
     time and worker); the union is every variant. A changed SPEC into DIR is refused."""
-    body = '[grid]\n"mu_k[1]" = [0.15, 0.2]\n"k[3]" = [' + ", ".join(f"{1e6 + 1e3 * j:.0f}" for j in range(10)) + "]\n"
+    body = '[grid]\n"mu_k[1]" = [0.15, 0.2]\n' + k3_grid(10)
     spec = write_spec(tmp_path / "resume.toml", body, stop_time=0.2)
     out = tmp_path / "out"
     proc = sweep_process(spec, "--out", out, "--scheduler", cluster.address)
-    lines = []
-    for line in proc.stdout:
-        lines.append(line)
-        if " 20 %" in line or " 30 %" in line:
-            proc.send_signal(signal.SIGINT)
-            break
+    lines = lines_until(proc, lambda line: " 20 %" in line or " 30 %" in line)
+    proc.send_signal(signal.SIGINT)
     rest, _ = proc.communicate(timeout=120)
     text = "".join(lines) + rest
     assert proc.returncode == 130, text
@@ -231,16 +243,11 @@ def test_lost_scheduler_keeps_finished_rows(tmp_path):
     """A cluster of its own; its scheduler is killed (SIGKILL) once 10 % of the variants are
     done: the command ends with exit 1 and a message saying so, and results.parquet holds
     the rows received before (all ok, none twice)."""
-    spec = write_spec(tmp_path / "lost.toml", '[grid]\n"k[3]" = [' + ", ".join(
-        f"{1e6 + 1e3 * j:.0f}" for j in range(30)) + "]\n", stop_time=0.3)
+    spec = write_spec(tmp_path / "lost.toml", "[grid]\n" + k3_grid(30), stop_time=0.3)
     out = tmp_path / "out"
     with loopback_cluster(tmp_path / "dask", workers=1) as c:
         proc = sweep_process(spec, "--out", out, "--scheduler", c.address)
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if "%" in line and "done" in line:
-                break
+        lines = lines_until(proc, progressed)
         c.scheduler.send_signal(signal.SIGKILL)
         rest, _ = proc.communicate(timeout=120)
         text = "".join(lines) + rest

@@ -157,35 +157,23 @@ impl Setting {
         }
     }
 
-    /// (min, max, whether min itself is excluded): the ranges of
-    /// `Model::validate`, declared in the modelDescription and checked at
-    /// fmi2SetReal so that a bad value is rejected by the call that sets it.
-    fn bounds(self) -> (f64, Option<f64>, bool) {
+    /// The setting's range: those of `Model::validate`, declared in the
+    /// modelDescription and checked at fmi2SetReal so that a bad value is
+    /// rejected by the call that sets it.
+    fn range(self) -> Range {
+        let closed = |(min, max): (f64, f64)| Range::closed(min, max);
         match self {
-            Setting::HMax | Setting::HMin => {
-                let (min, max) = IntegratorSettings::STEP_RANGE;
-                (min, Some(max), false)
-            }
-            Setting::ErrorTolerance => {
-                let (min, max) = IntegratorSettings::ERROR_TOLERANCE_RANGE;
-                (min, Some(max), true)
-            }
-            Setting::NewmarkBeta => {
-                let (min, max) = IntegratorSettings::BETA_RANGE;
-                (min, Some(max), false)
-            }
-            Setting::NewmarkGamma => {
-                let (min, max) = IntegratorSettings::GAMMA_RANGE;
-                (min, Some(max), false)
-            }
-            Setting::Tolerance => (0.0, Some(IntegratorSettings::TOLERANCE_MAX), true),
+            Setting::HMax | Setting::HMin => closed(IntegratorSettings::STEP_RANGE),
+            Setting::ErrorTolerance => Range::positive(IntegratorSettings::ERROR_TOLERANCE_RANGE.1),
+            Setting::NewmarkBeta => closed(IntegratorSettings::BETA_RANGE),
+            Setting::NewmarkGamma => closed(IntegratorSettings::GAMMA_RANGE),
+            Setting::Tolerance => Range::positive(IntegratorSettings::TOLERANCE_MAX),
         }
     }
 
     /// Checks `value` against the setting's range.
     pub fn check(self, value: f64) -> Result<(), String> {
-        let (min, max, min_excluded) = self.bounds();
-        let range = Range { min, max: max.unwrap_or(f64::INFINITY), min_excluded };
+        let range = self.range();
         if value.is_finite() && range.contains(value) {
             return Ok(());
         }
@@ -304,7 +292,7 @@ pub fn variables(model: &Model) -> Vec<Variable> {
     parameters(&mut b, model);
     start_values(&mut b, model);
     for s in Setting::ALL {
-        let (min, max, _) = s.bounds();
+        let range = s.range();
         let (unit, what) = match s {
             Setting::HMax => (
                 Some("s"),
@@ -322,9 +310,7 @@ pub fn variables(model: &Model) -> Vec<Variable> {
                 "Relative tolerance of the Newmark iteration on accelerations, reactions and friction forces (with error control no tighter than 1e-4 error_tolerance)",
             ),
         };
-        let ty = Type::Real { unit, min: Some(min), max, start: Some(s.get(&model.integrator)) };
-        let (_, _, exclusive) = s.bounds();
-        let range = Range { min, max: max.unwrap_or(f64::INFINITY), min_excluded: exclusive };
+        let ty = Type::Real { unit, min: Some(range.min), max: Some(range.max), start: Some(s.get(&model.integrator)) };
         let description = format!("{what}; fixed after initialization{}", excluded_min(range));
         b.push(s.name().into(), description, FIXED, ty, Quantity::Setting(s));
     }
