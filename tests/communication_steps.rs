@@ -83,6 +83,21 @@ fn error_control_gives_the_fixed_step_answer_at_any_communication_step() {
     }
 }
 
+/// Communication steps shorter than the sub-step the error control would
+/// choose (10 µs against about 20 µs on the reference motion): each interval
+/// is one sub-step, apart from events and the first intervals, in which the
+/// length grows from h_min. (A remainder between one and two proposals is
+/// split in halves; if those halves could not propose a longer sub-step, the
+/// length would never grow past the interval and every interval would take
+/// two sub-steps of half its length: 2.000 per interval measured before.)
+#[test]
+fn communication_steps_shorter_than_the_sub_step_take_one_sub_step_each() {
+    let run = run(Model::reference_rrpr().integrator, 1e-5, 0.5);
+    let per_interval = run.substeps as f64 / run.intervals as f64;
+    eprintln!("10 µs steps: {} sub-steps in {} intervals ({per_interval:.3} per interval)", run.substeps, run.intervals);
+    assert!(per_interval < 1.05, "{per_interval} sub-steps per interval");
+}
+
 /// One-second communication steps: the inputs jump at each interval's start
 /// (their Taylor polynomial over 1 s is far from the motion), and the stepper
 /// still completes each step with a finite state, taking short sub-steps where

@@ -401,10 +401,14 @@ impl Simulator {
             }
             let next = self.state.steps.next_h;
             let h = if next > 0.0 { next.clamp(settings.h_min, settings.h_max) } else { settings.h_min };
+            // The last sub-step, cut to the interval's end, keeps the proposal
+            // (it may only lower it); the halves of a remainder below two
+            // proposals propose from their own error like any sub-step, or the
+            // length could never grow past an interval shorter than 2h.
             let (target, shortened) = if remaining <= h {
                 (t_end, true)
             } else if remaining < 2.0 * h {
-                (self.state.time + 0.5 * remaining, true)
+                (self.state.time + 0.5 * remaining, false)
             } else {
                 (self.state.time + h, false)
             };
