@@ -63,7 +63,7 @@ fn reference_motion_shows_stick_slip_and_is_converged() {
     assert!(fine.evaluations_per_substep < 1.1, "{} evaluations per sub-step", fine.evaluations_per_substep);
     let coarse = reference_run(2e-5);
     let eps_max = fine.eps.iter().fold(0.0f64, |m, e| m.max(*e));
-    let diff = fine.eps.iter().zip(&coarse.eps).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    let diff = eps_deviation(&coarse, &fine);
     eprintln!("max |eps| {eps_max:.4e} m; max |eps(2e-5) - eps(2e-6)| {diff:.3e} m");
     assert!(eps_max > 1e-5, "the flexible arm lags its rigid twin");
     assert!(diff < 1e-3 * eps_max, "not converged: eps differs by {diff} m");
@@ -79,9 +79,9 @@ fn eps_deviation(run: &Run, fine: &Run) -> f64 {
 /// many sub-steps a given accuracy of ε costs (README, "Performance"): with
 /// the average-acceleration rule (β = ¼, the default) each halving of the
 /// sub-step divides the deviation of ε from the 2e-6 s run by four (4.0
-/// measured: second order); Fox–Goodwin's β = 1/12 has a fourth-order phase
-/// error for forces that do not depend on velocity, as here, and comes 88
-/// times closer at 1e-4 s (it is conditionally stable, ωh < √6, and does not
+/// measured: second order); Fox–Goodwin's β = 1/12, whose phase error is of
+/// fourth order for an undamped linear vibration, comes 88 times closer at
+/// 1e-4 s (it is conditionally stable, ωh < √6, and does not
 /// keep the energy account, hence not the default).
 #[test]
 fn average_acceleration_is_second_order_and_fox_goodwin_more_accurate_in_phase() {

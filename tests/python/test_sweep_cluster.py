@@ -292,7 +292,7 @@ def test_progress_bar_on_a_terminal_lines_otherwise(cluster, tmp_path):
 
 def test_timeout_is_a_row(cluster, tmp_path):
     """--timeout stops a variant that runs too long: a row with status `timeout`, the time it
-    reached, the metrics up to there; the others of the sweep are ok. The variants are made
+    reached, the metrics up to there (here every variant runs too long). The variants are made
     slow by their 50,000 communication steps of 10 µs (1.2 s through fmpy measured), not by
     the stepper's speed, which the error control made far shorter than the timeout at 1 ms."""
     spec = write_spec(tmp_path / "slow.toml", '[grid]\n"mu_k[3]" = [0.15, 0.2]\n', stop_time=0.5, step=1e-5)
