@@ -94,15 +94,29 @@ pub enum StepError {
         /// The rejected interval, s.
         interval: f64,
     },
-    /// The Newmark iteration did not converge within its iteration limit.
-    #[error("Newmark iteration did not converge at t = {time} s after {iterations} iterations (residual {residual:e})")]
+    /// The Newmark iteration found no consistent state: it did not converge
+    /// within its iteration limit, also at the shortest sub-step it was
+    /// tried with.
+    #[error(
+        "Newmark iteration did not converge at t = {time} s for joint {joint} after {iterations} iterations \
+         (residual {residual:e}{}): {cause}",
+        shortest_note(*substep, *halvings)
+    )]
     NotConverged {
-        /// Time of the failed sub-step, s.
+        /// Time of the end of the failed sub-step, s.
         time: f64,
+        /// The joint with the largest residual, 1-based.
+        joint: usize,
         /// Iterations done.
         iterations: usize,
-        /// Last relative change of the accelerations.
+        /// Largest residual of (3.9) relative to the joint's force scale.
         residual: f64,
+        /// Length of the failed sub-step, s.
+        substep: f64,
+        /// How often the sub-step had been halved before it failed.
+        halvings: usize,
+        /// Why that joint's equation has no consistent solution.
+        cause: NonConvergence,
     },
     /// The mass matrix of the slipping joints is not positive definite.
     #[error("mass matrix of the slipping joints is not positive definite at t = {time} s")]
@@ -131,4 +145,50 @@ pub enum StepError {
         /// Name of the instruction set.
         name: &'static str,
     },
+}
+
+/// Why the Newmark iteration found no consistent state for a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NonConvergence {
+    /// The joint's drive switched between transmitting force and not (an edge
+    /// of its clearance, or its flank's release) from one iterate to the next.
+    DriveSwitching,
+    /// The joint's friction changed its form from one iterate to the next (a
+    /// kink of the contact loads (3.11), (3.15) or of the characteristic), or
+    /// grows with the load its own acceleration causes (a slider or bearing
+    /// too short for the load it guides wedges: no slip is consistent).
+    Friction,
+    /// The iterates still approached the solution when the iteration limit
+    /// `max_iterations` was reached, or the tolerance `tolerance` is below
+    /// what rounding lets the residual reach.
+    IterationLimit,
+}
+
+impl std::fmt::Display for NonConvergence {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            NonConvergence::DriveSwitching => {
+                "its drive switches between engaged and free from one iterate to the next (an edge of its clearance \
+                 or the release of its flank); check the drive's stiffness, damping and clearance"
+            }
+            NonConvergence::Friction => {
+                "its friction changes form from one iterate to the next or grows with the load its own acceleration \
+                 causes (a slider or bearing too short for the load it guides wedges, and no slip is consistent); \
+                 check the joint's contact geometry and friction coefficients"
+            }
+            NonConvergence::IterationLimit => {
+                "the residual still fell when the iteration limit was reached, or cannot reach the tolerance in \
+                 floating point; raise `max_iterations` or loosen `tolerance`"
+            }
+        })
+    }
+}
+
+/// " at the shortest sub-step tried, … s" where the sub-step had been halved.
+fn shortest_note(substep: f64, halvings: usize) -> String {
+    if halvings == 0 {
+        format!(", sub-step {substep:e} s")
+    } else {
+        format!(", even at the shortest sub-step tried, {substep:e} s after {halvings} halvings")
+    }
 }

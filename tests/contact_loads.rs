@@ -90,7 +90,8 @@ fn drive_force_with_clearance_is_eq_2_1() {
     let force = |q_star, qd_star, q, qd| drive_force(k, h, gap, q_star, qd_star, q, qd);
     // Inside the clearance the drive transmits nothing, damping included.
     for q_star in [0.0015, -0.0015] {
-        assert_eq!(force(q_star, 1.0, 0.0, 0.0), DriveForce { force: 0.0, damping: 0.0, engaged: false });
+        let inside = force(q_star, 1.0, 0.0, 0.0);
+        assert_eq!(inside, DriveForce { force: 0.0, damping: 0.0, engaged: false, flank: f64::INFINITY });
     }
     // Outside: k(q* − q − σΔ) + h(q̇* − q̇), σ = sgn(q* − q); damping part h(q̇* − q̇).
     let out = force(0.005, 0.3, 0.001, 0.1);
@@ -110,6 +111,45 @@ fn drive_force_with_clearance_is_eq_2_1() {
     assert_eq!(drive_force(k, h, 0.0, 1e-3, 0.0, 0.0, 0.0).force, 1e3);
     // A NaN deflection is not hidden as "inside the clearance".
     assert!(drive_force(k, h, gap, f64::NAN, 0.0, 0.0, 0.0).force.is_nan());
+}
+
+/// With clearance and damping a flank only pushes: where (2.1) would pull
+/// (the flanks separate faster than the spring relaxes) the force is 0, the
+/// damper's part holds the spring (−k(q* − q − σΔ)), and the flank force
+/// σ·F of (2.1) says by how much it would pull; F^d is continuous where the
+/// flank force crosses zero. Without damping, or without clearance, (2.1)
+/// bit for bit, and nothing to release.
+#[test]
+fn a_damped_flank_with_clearance_only_pushes() {
+    let (k, h, gap) = (1e6, 1e3, 0.002);
+    for sigma in [1.0, -1.0] {
+        let (e, rate) = (sigma * 0.0025, -sigma * 0.6);
+        // (2.1): k·σ·0.0005 + h·(−σ·0.6) = σ·(500 − 600): it would pull.
+        let pulling = k * (e - sigma * gap) + h * rate;
+        let out = drive_force(k, h, gap, e, rate, 0.0, 0.0);
+        assert_eq!((out.force, out.engaged), (0.0, false), "σ = {sigma}: {out:?}");
+        assert_eq!(out.flank, sigma * pulling);
+        assert!(out.flank < 0.0);
+        assert_eq!(out.damping, -k * (e - sigma * gap));
+        // A slower separation: it pushes, (2.1) unchanged.
+        let out = drive_force(k, h, gap, e, -sigma * 0.4, 0.0, 0.0);
+        let pushing = k * (e - sigma * gap) + h * (-sigma * 0.4);
+        assert_eq!((out.force, out.engaged, out.damping), (pushing, true, h * (-sigma * 0.4)));
+        assert_eq!(out.flank, sigma * pushing);
+        // Continuous through the release: the separation speed where the
+        // flank force vanishes is k·(|e| − Δ)/h = 0.5.
+        for rate in [0.5 - 1e-9, 0.5 + 1e-9] {
+            let f = drive_force(k, h, gap, e, -sigma * rate, 0.0, 0.0).force;
+            assert!(f.abs() < 1e-5, "σ = {sigma}, rate {rate}: {f}");
+        }
+    }
+    // Without damping the flank force k(|e| − Δ) is never negative; without
+    // clearance the drive may pull: both are (2.1) with nothing to release.
+    let undamped = drive_force(k, 0.0, gap, 0.0025, -0.6, 0.0, 0.0);
+    assert_eq!((undamped.force, undamped.engaged, undamped.flank), (k * (0.0025 - gap), true, f64::INFINITY));
+    let bilateral = drive_force(k, h, 0.0, 0.0005, -0.6, 0.0, 0.0);
+    assert_eq!((bilateral.force, bilateral.flank), (k * 0.0005 + h * -0.6, f64::INFINITY));
+    assert!(bilateral.force < 0.0 && bilateral.engaged);
 }
 
 /// −∂F^d/∂q̈ through the Newmark relations (q by βh², q̇ by γh per unit q̈)

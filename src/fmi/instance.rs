@@ -519,9 +519,16 @@ impl Instance {
             ) => {
                 self.lifecycle = LifeCycle::StepFailed;
                 self.logger.log(Status::Ok, Category::Events, &format!("t = {now} s: step of {h} s discarded ({e})"));
+                // The sub-steps do not depend on the communication step (a
+                // failed one is halved down to h/4096 before the step fails),
+                // so a shorter step does not help; other values or inputs can.
                 let remedy = match e {
                     StepError::InvalidModel { .. } => "correct the parameters and repeat the step",
-                    _ => "repeat it with a shorter step or other inputs, or restore an FMU state",
+                    StepError::NotConverged { .. } => {
+                        "a shorter communication step does not help; change the parameters or inputs named above, \
+                         or restore an FMU state"
+                    }
+                    _ => "repeat it with other parameters or inputs, or restore an FMU state",
                 };
                 Err(Fault::discard(format!(
                     "step [{now}, {}] s not completed: {e}; the state stays at t = {now} s (fmi2LastSuccessfulTime); {remedy}",

@@ -48,6 +48,14 @@ impl Drive {
     pub fn is_flexible(&self) -> bool {
         matches!(self, Drive::Flexible { .. })
     }
+
+    /// The damping h of a flexible drive, 0 for a rigid one.
+    pub fn damping(&self) -> f64 {
+        match self {
+            Drive::Flexible { damping, .. } => *damping,
+            Drive::Rigid => 0.0,
+        }
+    }
 }
 
 /// Friction coefficients of a joint; their characteristic μ(v) is in

@@ -138,6 +138,12 @@ impl Model {
         self.joints.iter().any(|j| matches!(j.drive, Drive::Flexible { clearance, .. } if clearance > 0.0))
     }
 
+    /// True if some flexible drive has both a clearance and damping, so that
+    /// its flank can release (see [`crate::forces::drive`]).
+    pub fn has_damped_clearance(&self) -> bool {
+        self.joints.iter().any(|j| matches!(j.drive, Drive::Flexible { clearance, damping, .. } if clearance > 0.0 && damping != 0.0))
+    }
+
     /// True if joint `joint` (0-based) has parameter `p`.
     pub fn has_parameter(&self, p: Parameter, joint: usize) -> bool {
         self.parameter(p, joint).is_some()

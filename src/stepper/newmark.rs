@@ -14,8 +14,8 @@ use crate::algorithms::kinematics::{forward_kinematics_at_transforms, reaction_p
 use crate::algorithms::lu;
 use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::data::Data;
-use crate::error::StepError;
-use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force};
+use crate::error::{NonConvergence, StepError};
+use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force_over_substep};
 use crate::forces::friction::{
     contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
     stuck_friction,
@@ -60,6 +60,11 @@ pub(crate) struct NewmarkSolver {
     newton_step: Vec<f64>,
     /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
     iterations: u64,
+    /// Per joint: whether its drive transmitted force at the last iterate,
+    /// and how often that changed in the current sub-step's iteration (the
+    /// diagnosis of a failure, [`NonConvergence`]).
+    engaged: Vec<bool>,
+    engagement_changes: Vec<u32>,
 }
 
 /// What a sub-step reads besides the state it solves: the model, the
@@ -89,7 +94,15 @@ impl NewmarkSolver {
             accepted_qdd: vec![0.0; n],
             newton_step: vec![0.0; n],
             iterations: 0,
+            engaged: vec![false; n],
+            engagement_changes: vec![0; n],
         }
+    }
+
+    /// The refined q̈ at the start of the previous sub-step and that
+    /// sub-step's length, when the history has it.
+    pub fn previous_start(&self) -> Option<(&[f64], f64)> {
+        (self.predictor_depth >= 1).then(|| (&self.qdd_history[1][..], self.previous_h[0]))
     }
 
     /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
@@ -175,6 +188,13 @@ impl NewmarkSolver {
         // back towards the last accepted iterate.
         const PLAIN_NEWTON_STEPS: usize = 6;
         let mut accepted_merit = f64::INFINITY;
+        let mut previous_merit = f64::INFINITY;
+        // The clearance margins at the start of the sub-step: a damped drive
+        // whose clearance is open there stays open until the located closing
+        // (see `drive_force_over_substep`). A zero-length solve evaluates the
+        // state as it is.
+        let open = if h > 0.0 { &start.clearance_margin[..] } else { &[] };
+        self.engagement_changes.fill(0);
         for iteration in 1..=settings.max_iterations {
             // q and q̇ of the free joints follow their q̈ (see `newmark`).
             // The DH transforms follow q (skipped when only rounding moved it).
@@ -187,7 +207,7 @@ impl NewmarkSolver {
                     joint_reaction(model, data, i);
                 }
             }
-            let (residual, merit) = self.joint_forces(model, data, state);
+            let (residual, merit, worst_joint) = self.joint_forces(model, data, state, open, iteration == 1);
             self.iterations += 1;
             if !residual.is_finite() {
                 return Err(StepError::NonFiniteState { time: t });
@@ -197,8 +217,18 @@ impl NewmarkSolver {
                 return Ok(());
             }
             if iteration == settings.max_iterations {
-                return Err(StepError::NotConverged { time: t, iterations: iteration, residual });
+                let cause = self.diagnose(model, worst_joint, iteration, residual, merit < 0.5 * previous_merit);
+                return Err(StepError::NotConverged {
+                    time: t,
+                    joint: worst_joint + 1,
+                    iterations: iteration,
+                    residual,
+                    substep: h,
+                    halvings: 0,
+                    cause,
+                });
             }
+            previous_merit = merit;
             if iteration > PLAIN_NEWTON_STEPS && merit >= accepted_merit {
                 for (k, &i) in self.free.iter().enumerate() {
                     self.newton_step[k] *= 0.5;
@@ -213,7 +243,7 @@ impl NewmarkSolver {
                 // kinematics, of the coordinates the inverse dynamics used.
                 forward_kinematics_at_transforms(model, data);
                 crba(model, data);
-                self.factor_newton_matrix(model, data, state, h, beta, gamma)?;
+                self.factor_newton_matrix(model, data, state, open, h, beta, gamma)?;
                 self.newton_valid = true;
                 self.newton_h = h;
                 self.newton_free.clear();
@@ -228,6 +258,20 @@ impl NewmarkSolver {
             }
         }
         unreachable!("the loop returns on its last iteration")
+    }
+
+    /// Why the iteration of the current sub-step found no consistent state
+    /// for joint `joint` (0-based), whose residual `residual` is the largest
+    /// after `iterations` iterations; `contracting` when the last iterate
+    /// still lowered the residual's merit by half.
+    fn diagnose(&self, model: &Model, joint: usize, iterations: usize, residual: f64, contracting: bool) -> NonConvergence {
+        if self.engagement_changes[joint] > 0 {
+            NonConvergence::DriveSwitching
+        } else if iterations <= 2 || contracting || residual < 1e-12 || model.joints[joint].friction.is_none() {
+            NonConvergence::IterationLimit
+        } else {
+            NonConvergence::Friction
+        }
     }
 
     /// Sets up the sub-step to time `t` (length `h`): the drive inputs at
@@ -314,7 +358,17 @@ impl NewmarkSolver {
     /// through q̇, by γh ([`slip_friction_velocity_slope`]). Without the
     /// reaction term the iteration only contracts slowly on long chains with
     /// much friction.
-    fn factor_newton_matrix(&mut self, model: &Model, data: &Data, st: &State, h: f64, beta: f64, gamma: f64) -> Result<(), StepError> {
+    #[allow(clippy::too_many_arguments)]
+    fn factor_newton_matrix(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        st: &State,
+        open: &[f64],
+        h: f64,
+        beta: f64,
+        gamma: f64,
+    ) -> Result<(), StepError> {
         let nf = self.free.len();
         for (a, &s) in self.free.iter().enumerate() {
             for (b, &j) in self.free.iter().enumerate() {
@@ -322,7 +376,9 @@ impl NewmarkSolver {
             }
             let joint = &model.joints[s];
             if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
-                let drive = drive_force(stiffness, damping, clearance, st.q_star[s], st.qd_star[s], st.q[s], st.qd[s]);
+                let open_at_start = open.get(s).is_some_and(|&m| m < 0.0);
+                let drive =
+                    drive_force_over_substep(stiffness, damping, clearance, open_at_start, st.q_star[s], st.qd_star[s], st.q[s], st.qd[s]);
                 self.iteration_matrix[a * nf + a] += acceleration_stiffness(stiffness, damping, drive.engaged, h, beta, gamma);
             }
             let (Some(friction), Phase::Slipping(d)) = (joint.friction.as_ref(), st.phase[s]) else { continue };
@@ -351,10 +407,14 @@ impl NewmarkSolver {
     /// Drive forces (2.1), contact loads and friction (3.11)–(3.15), phase
     /// margins (3.16) and clearance margins (2.1) of every joint from the reactions in the workspace;
     /// fills the residuals of the free joints into `self.correction` and
-    /// returns the largest one relative to its joint's force scale, and the
-    /// sum of the squares of these relative residuals.
+    /// returns the largest one relative to its joint's force scale, the
+    /// sum of the squares of these relative residuals and the joint (0-based)
+    /// of the largest. Counts the changes of each drive's engagement since
+    /// the last call, unless `first` (the first iterate of a sub-step).
     #[inline(always)]
-    fn joint_forces(&mut self, model: &Model, data: &Data, st: &mut State) -> (f64, f64) {
+    /// `open` holds the clearance margins at the sub-step's start (empty for
+    /// a zero-length solve): see [`drive_force_over_substep`].
+    fn joint_forces(&mut self, model: &Model, data: &Data, st: &mut State, open: &[f64], first: bool) -> (f64, f64, usize) {
         let n = model.nq();
         // Slices of length n let the compiler drop the per-index bounds checks.
         let (q, qd, q_star, qd_star, phase) = (&st.q[..n], &st.qd[..n], &st.q_star[..n], &st.qd_star[..n], &st.phase[..n]);
@@ -364,7 +424,9 @@ impl NewmarkSolver {
         let clearance_edge = &mut st.clearance_margin[..n];
         let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
         let correction = &mut self.correction[..n];
+        let (engaged, engagement_changes) = (&mut self.engaged[..n], &mut self.engagement_changes[..n]);
         let mut worst: f64 = 0.0;
+        let mut worst_joint = 0;
         let mut merit = 0.0;
         let mut k = 0;
         for (i, joint) in model.joints.iter().enumerate().take(n) {
@@ -390,8 +452,14 @@ impl NewmarkSolver {
                     clearance_edge[i] = f64::INFINITY;
                 }
                 Drive::Flexible { stiffness, damping, clearance } => {
-                    let drive = drive_force(stiffness, damping, clearance, q_star[i], qd_star[i], q[i], qd[i]);
+                    let open_at_start = open.get(i).is_some_and(|&m| m < 0.0);
+                    let drive =
+                        drive_force_over_substep(stiffness, damping, clearance, open_at_start, q_star[i], qd_star[i], q[i], qd[i]);
                     let fd = drive.force;
+                    if !first && drive.engaged != engaged[i] {
+                        engagement_changes[i] += 1;
+                    }
+                    engaged[i] = drive.engaged;
                     drive_force_out[i] = fd;
                     damping_force[i] = drive.damping;
                     clearance_edge[i] =
@@ -411,7 +479,9 @@ impl NewmarkSolver {
                             let residual = fd - slip.force - tau;
                             let scale = fd.abs() + slip.force.abs() + tau.abs() + joint_load_scale(data, joint, i);
                             let relative = residual / scale.max(f64::MIN_POSITIVE);
-                            worst = worst.max(relative.abs());
+                            if relative.abs() > worst {
+                                (worst, worst_joint) = (relative.abs(), i);
+                            }
                             merit += relative * relative;
                             correction[k] = residual;
                             k += 1;
@@ -421,7 +491,7 @@ impl NewmarkSolver {
                 }
             }
         }
-        (worst, merit)
+        (worst, merit, worst_joint)
     }
 }
 

@@ -203,7 +203,7 @@ impl State {
 
     /// Makes `self` the start of a sub-step from `other`, the current state:
     /// takes its time and swaps in what a sub-step reads of its start (q, q̇,
-    /// q̈, q*, the forces whose work is booked and the phase margins) instead
+    /// q̈, q*, q̇*, the forces whose work is booked and the phase margins) instead
     /// of copying them. Those fields of `other` are left stale: solving the
     /// sub-step overwrites every one of them.
     #[inline(always)]
@@ -213,6 +213,7 @@ impl State {
         std::mem::swap(&mut self.qd, &mut other.qd);
         std::mem::swap(&mut self.qdd, &mut other.qdd);
         std::mem::swap(&mut self.q_star, &mut other.q_star);
+        std::mem::swap(&mut self.qd_star, &mut other.qd_star);
         std::mem::swap(&mut self.drive_force, &mut other.drive_force);
         std::mem::swap(&mut self.damping_force, &mut other.damping_force);
         std::mem::swap(&mut self.friction_force, &mut other.friction_force);

@@ -1,10 +1,13 @@
-//! Stick–slip switching (study eqs. 3.16–3.18) with the transition located
-//! inside the sub-step, and the energy account of accepted sub-steps.
+//! Stick–slip switching (study eqs. 3.16–3.18), the edges of the drive
+//! clearances and the release of a damped drive's flank (2.1), each located
+//! inside the sub-step; and the energy account of accepted sub-steps.
 
 use super::error_control::{error_ratio, optimal_factor, GROWTH_MAX};
 use super::simulator::Simulator;
 use super::state::{Phase, State};
 use crate::error::StepError;
+use crate::forces::drive::drive_force;
+use crate::model::Drive;
 
 /// A transition is located to this fraction of the sub-step.
 const EVENT_RESOLUTION: f64 = 1e-7;
@@ -22,6 +25,10 @@ enum Event {
     /// Joint `.0`'s deflection crosses an edge of its clearance, where δ of
     /// (2.1) switches; `.1` is the sign of the clearance margin before.
     Clearance(usize, f64),
+    /// The flank force σ·F of joint `.0`'s drive changes sign with the
+    /// clearance taken up: the flank releases (or engages again) where (2.1)
+    /// would pull (see [`crate::forces::drive`]); `.1` is its sign before.
+    Release(usize, f64),
 }
 
 /// How [`Simulator::substep`] chooses its length.
@@ -58,8 +65,11 @@ impl Simulator {
         let mut halvings = 0;
         let mut rejected = false;
         let factor = loop {
-            if let Err(e) = self.solve(t0 + h) {
+            if let Err(mut e) = self.solve(t0 + h) {
                 if !matches!(e, StepError::NotConverged { .. }) || halvings == MAX_HALVINGS {
+                    if let StepError::NotConverged { halvings: ref mut done, .. } = e {
+                        *done = halvings;
+                    }
                     return Err(e);
                 }
                 halvings += 1;
@@ -69,7 +79,7 @@ impl Simulator {
             if control == StepControl::Fixed {
                 break 1.0;
             }
-            let ratio = error_ratio(&self.model, &self.start, &self.state, h);
+            let ratio = error_ratio(&self.model, &self.data, &self.start, &self.state, h, self.solver.previous_start());
             let factor = optimal_factor(ratio);
             // At the floor (up to the rounding of t0 + h − t0) the step is taken.
             if ratio > 1.0 && h > settings.h_min * (1.0 + 1e-9) {
@@ -121,9 +131,18 @@ impl Simulator {
         }
         self.accept()?;
         self.instant += 1;
-        if let Event::Phase(joint) = event {
-            let breakaway = self.state.phase[joint] == Phase::Stuck;
-            self.decide_at_rest(joint, breakaway)?;
+        match event {
+            Event::Phase(joint) => {
+                let breakaway = self.state.phase[joint] == Phase::Stuck;
+                self.decide_at_rest(joint, breakaway)?;
+            }
+            // A damped drive's force jumps by h·δ̇ where its clearance closes:
+            // the sub-step was solved with it open (`drive_force_over_substep`);
+            // accelerations and margins now follow the engaged drive.
+            Event::Clearance(joint, sign) if sign < 0.0 && self.model.joints[joint].drive.damping() != 0.0 => {
+                self.evaluate()?;
+            }
+            _ => {}
         }
         self.settle_phases()
     }
@@ -135,6 +154,19 @@ impl Simulator {
         match event {
             Event::Phase(i) => state.margin[i],
             Event::Clearance(i, sign) => sign * state.clearance_margin[i],
+            Event::Release(i, sign) => sign * self.flank_force(i, state),
+        }
+    }
+
+    /// σ·F of (2.1) of joint `i`'s drive in `state` ([`DriveForce::flank`](crate::forces::drive::DriveForce::flank)):
+    /// +∞ for a joint whose drive cannot release.
+    #[inline(always)]
+    fn flank_force(&self, i: usize, state: &State) -> f64 {
+        match self.model.joints[i].drive {
+            Drive::Flexible { stiffness, damping, clearance } => {
+                drive_force(stiffness, damping, clearance, state.q_star[i], state.qd_star[i], state.q[i], state.qd[i]).flank
+            }
+            Drive::Rigid => f64::INFINITY,
         }
     }
 
@@ -147,6 +179,7 @@ impl Simulator {
         let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
         let (c_start, c_end) = (&self.start.clearance_margin[..n], &self.state.clearance_margin[..n]);
         let clearances = self.model.has_clearance();
+        let releases = self.model.has_damped_clearance();
         let (mut best, mut best_theta) = (None, f64::INFINITY);
         for i in 0..n {
             let (g0, g1) = (start[i], end[i]);
@@ -165,6 +198,17 @@ impl Simulator {
                 let theta = c0 / (c0 - c1);
                 if theta < best_theta {
                     (best, best_theta) = (Some(Event::Clearance(i, c0.signum())), theta);
+                }
+            }
+            if !releases {
+                continue;
+            }
+            let (f0, f1) = (self.flank_force(i, &self.start), self.flank_force(i, &self.state));
+            // Infinite inside the clearance and where no release can happen.
+            if f0.is_finite() && f1.is_finite() && (f0 > 0.0) != (f1 > 0.0) && f0 != 0.0 {
+                let theta = f0 / (f0 - f1);
+                if theta < best_theta {
+                    (best, best_theta) = (Some(Event::Release(i, f0.signum())), theta);
                 }
             }
         }
