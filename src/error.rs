@@ -184,9 +184,12 @@ impl std::fmt::Display for NonConvergence {
     }
 }
 
-/// " at the shortest sub-step tried, … s" where the sub-step had been halved.
+/// Which solve failed: at an instant (no sub-step), a sub-step, or the
+/// shortest of the halved sub-steps.
 fn shortest_note(substep: f64, halvings: usize) -> String {
-    if halvings == 0 {
+    if substep == 0.0 {
+        ", solving the state at that instant after a phase change or at the start of a step".to_string()
+    } else if halvings == 0 {
         format!(", sub-step {substep:e} s")
     } else {
         format!(", even at the shortest sub-step tried, {substep:e} s after {halvings} halvings")

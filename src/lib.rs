@@ -12,6 +12,6 @@ pub mod motion;
 pub mod stepper;
 
 pub use data::Data;
-pub use error::{ModelError, StepError};
+pub use error::{ModelError, NonConvergence, StepError};
 pub use model::Model;
 pub use stepper::{DriveInputs, Energy, InitialState, Phase, Simulator, State, StepStatistics};

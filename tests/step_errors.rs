@@ -10,7 +10,7 @@
 mod common;
 
 use stick_slip_manipulator::model::Parameter;
-use stick_slip_manipulator::{DriveInputs, Model, Simulator, StepError};
+use stick_slip_manipulator::{DriveInputs, Model, NonConvergence, Simulator, StepError};
 
 const Q: [f64; 4] = [0.1, 0.2, 0.9, 0.3];
 const V: [f64; 4] = [0.5, 0.1, 0.2, 0.3];
@@ -87,8 +87,45 @@ fn a_newmark_iteration_that_does_not_converge_is_reported() {
     sim.initialize(0.0, &DriveInputs { q_star: &Q, qd_star: &A, qdd_star: &A }, None).unwrap();
     let before = sim.state().clone();
     let e = sim.advance(&DriveInputs { q_star: &Q, qd_star: &V, qdd_star: &A }, 1e-3).unwrap_err();
-    assert!(matches!(e, StepError::NotConverged { iterations: 1, .. }), "{e}");
+    // One iteration is no judgement of convergence: the limit is named.
+    assert!(
+        matches!(e, StepError::NotConverged { iterations: 1, halvings: 12, cause: NonConvergence::IterationLimit, .. }),
+        "{e:?}"
+    );
+    let message = e.to_string();
+    for part in ["for joint ", "even at the shortest sub-step tried", "after 12 halvings", "raise `max_iterations`"] {
+        assert!(message.contains(part), "{message}");
+    }
     assert_eq!(sim.state(), &before, "state restored to the start of the interval");
+}
+
+/// A slider far too short for the load it guides (a = 5 mm, μ = 0.6 in both
+/// friction joints) wedges: no slip is consistent, at any sub-step. The
+/// discard says so: the joint, that the sub-step was halved to its shortest,
+/// and that its friction is the cause, not the step.
+#[test]
+fn a_wedged_joint_is_reported_with_its_friction_as_the_cause() {
+    let mut model = Model::reference_rrpr();
+    model.integrator.h_min = 2e-6;
+    model.integrator.h_max = 2e-6;
+    model.set_parameter(Parameter::SliderA, 2, 0.005).unwrap();
+    for joint in [0, 2] {
+        model.set_parameter(Parameter::MuStatic, joint, 0.6).unwrap();
+        model.set_parameter(Parameter::MuKinetic, joint, 0.6).unwrap();
+    }
+    let mut sim = Simulator::new(model).unwrap();
+    let (q, qd, qdd) = stick_slip_manipulator::motion::reference_inputs(0.0);
+    sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None).unwrap();
+    let e = (0..1000)
+        .find_map(|k| {
+            let (q, qd, qdd) = stick_slip_manipulator::motion::reference_inputs(k as f64 * 1e-3);
+            sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, 1e-3).err()
+        })
+        .expect("the wedged arm cannot finish the first second");
+    let StepError::NotConverged { joint, halvings, cause, substep, .. } = e else { panic!("{e}") };
+    assert_eq!((halvings, cause), (12, NonConvergence::Friction), "{e}");
+    assert!((1..=4).contains(&joint) && substep < 2e-6 / 4000.0, "{e}");
+    assert!(e.to_string().contains("friction") && !e.to_string().contains("shorter"), "{e}");
 }
 
 #[test]

@@ -22,6 +22,9 @@ use crate::forces::friction::{
 };
 use crate::model::{Drive, Joint, JointKind, Model};
 
+/// How many iterates back a failed iteration is judged as still converging.
+const RECENT_ITERATES: usize = 5;
+
 /// How far, relative to the sub-step, an error-controlled sub-step's length
 /// may be from the one its Newton matrix was built for.
 const NEWTON_REUSE: f64 = 0.3;
@@ -188,7 +191,9 @@ impl NewmarkSolver {
         // back towards the last accepted iterate.
         const PLAIN_NEWTON_STEPS: usize = 6;
         let mut accepted_merit = f64::INFINITY;
-        let mut previous_merit = f64::INFINITY;
+        // The merits of the last few iterates, to tell an iteration that was
+        // still converging from one that cycles.
+        let mut recent_merits = [f64::INFINITY; RECENT_ITERATES];
         // The clearance margins at the start of the sub-step: a damped drive
         // whose clearance is open there stays open until the located closing
         // (see `drive_force_over_substep`). A zero-length solve evaluates the
@@ -217,7 +222,8 @@ impl NewmarkSolver {
                 return Ok(());
             }
             if iteration == settings.max_iterations {
-                let cause = self.diagnose(model, worst_joint, iteration, residual, merit < 0.5 * previous_merit);
+                let contracting = merit < 1e-3 * recent_merits[iteration % RECENT_ITERATES];
+                let cause = self.diagnose(model, worst_joint, iteration, residual, contracting);
                 return Err(StepError::NotConverged {
                     time: t,
                     joint: worst_joint + 1,
@@ -228,7 +234,7 @@ impl NewmarkSolver {
                     cause,
                 });
             }
-            previous_merit = merit;
+            recent_merits[iteration % RECENT_ITERATES] = merit;
             if iteration > PLAIN_NEWTON_STEPS && merit >= accepted_merit {
                 for (k, &i) in self.free.iter().enumerate() {
                     self.newton_step[k] *= 0.5;
@@ -262,8 +268,8 @@ impl NewmarkSolver {
 
     /// Why the iteration of the current sub-step found no consistent state
     /// for joint `joint` (0-based), whose residual `residual` is the largest
-    /// after `iterations` iterations; `contracting` when the last iterate
-    /// still lowered the residual's merit by half.
+    /// after `iterations` iterations; `contracting` when the merit fell a
+    /// thousandfold over the last [`RECENT_ITERATES`] iterates.
     fn diagnose(&self, model: &Model, joint: usize, iterations: usize, residual: f64, contracting: bool) -> NonConvergence {
         if self.engagement_changes[joint] > 0 {
             NonConvergence::DriveSwitching

@@ -69,7 +69,8 @@ FIXED_STEPS = {"h_min": 2e-6, "h_max": 2e-6}
 
 
 def test_discard_from_iteration_tolerance_then_reset(clean):
-    """With fixed sub-steps (with error control the iteration tolerance is floored at
+    """The discard's message names the joint and the cause.
+    With fixed sub-steps (with error control the iteration tolerance is floored at
     1e-4 error_tolerance) and the fixed parameter `tolerance` set to 1e-300 the iteration
     cannot converge once a joint slips: some step k returns fmi2Discard,
     fmi2LastSuccessfulTime is t_k (to 1e-12) and the outputs are those of the clean
@@ -92,6 +93,12 @@ def test_discard_from_iteration_tolerance_then_reset(clean):
         assert k > 0, "the very first step failed"
         assert abs(s.fmu.getRealStatus(fmi2LastSuccessfulTime) - k * 1e-3) <= 1e-12
         assert np.array_equal(s.outputs(), clean_fixed[k])
+        # The message tells the truth: which joint, the cause (a tolerance rounding cannot
+        # reach) and that a shorter communication step does not help.
+        msgs = [m for (_, st, _, m) in s.log.records if st == fmi2Discard]
+        assert msgs, s.log.text()
+        for part in ("for joint ", "loosen `tolerance`", "a shorter communication step does not help"):
+            assert part in msgs[0], msgs[0]
         with pytest.raises(FMICallException) as info:
             s.set("tolerance", 1e-10)
         assert info.value.status == fmi2Error
