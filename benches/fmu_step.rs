@@ -49,18 +49,22 @@ fn do_step(c: &mut Criterion) {
         .map(|v| v.value_reference)
         .collect();
     let mut inst = import.instantiate_cs("bench", false, false).expect("fmi2Instantiate");
-    // `fixed`: h_min = h_max = 2e-6 s; otherwise the model's error control.
-    let start = |inst: &mut InstanceCS, fixed: bool| {
+    // `fixed`: h_min = h_max = 2e-6 s; otherwise the model's error control;
+    // `parameters` set before initialization.
+    let start = |inst: &mut InstanceCS, fixed: bool, parameters: &[(u32, f64)]| {
         inst.reset().expect("fmi2Reset");
         if fixed {
             inst.set_real(&steps_vrs, &[2e-6, 2e-6]).expect("fixed sub-steps");
+        }
+        for &(vr, value) in parameters {
+            inst.set_real(&[vr], &[value]).expect("parameter");
         }
         inst.setup_experiment(None, 0.0, None).expect("fmi2SetupExperiment");
         inst.enter_initialization_mode().expect("fmi2EnterInitializationMode");
         inst.set_real(&inputs, &values_at(0.0)).expect("inputs");
         inst.exit_initialization_mode().expect("fmi2ExitInitializationMode");
     };
-    start(&mut inst, true);
+    start(&mut inst, true, &[]);
     let steps = (REFERENCE_RUN_TIME / STEP).round() as usize;
     let mut k = 0;
     let mut group = c.benchmark_group("fmu");
@@ -70,7 +74,7 @@ fn do_step(c: &mut Criterion) {
             let mut total = Duration::ZERO;
             for _ in 0..iters {
                 if k == steps {
-                    start(&mut inst, true);
+                    start(&mut inst, true, &[]);
                     k = 0;
                 }
                 let t = k as f64 * STEP;
@@ -86,30 +90,45 @@ fn do_step(c: &mut Criterion) {
     });
     group.finish();
 
-    let mut group = c.benchmark_group("reference_motion_2s");
-    group.sample_size(10);
+    let damped_backlash: Vec<(u32, f64)> = [
+        ("h[1]", 50.0),
+        ("h[3]", 50.0),
+        ("Delta[1]", 4.62e-4),
+        ("Delta[3]", 3e-5),
+        ("mu_s[1]", 0.21),
+        ("mu_k[1]", 0.19),
+        ("mu_s[3]", 0.21),
+        ("mu_k[3]", 0.19),
+    ]
+    .into_iter()
+    .map(|(name, value)| (vr(name), value))
+    .collect();
     let mut values = vec![0.0; outputs.len()];
-    for (name, fixed) in [("fixed_2e-6", true), ("error_control", false)] {
-        group.bench_function(name, |b| {
-            b.iter_custom(|iters| {
-                let mut total = Duration::ZERO;
-                for _ in 0..iters {
-                    start(&mut inst, fixed);
-                    for k in 0..steps {
-                        let t = k as f64 * STEP;
-                        let inputs_now = values_at(t);
-                        let clock = Instant::now();
-                        inst.set_real(&inputs, &inputs_now).expect("fmi2SetReal");
-                        inst.do_step(t, STEP, true).expect("fmi2DoStep");
-                        inst.get_real(&outputs, &mut values).expect("fmi2GetReal");
-                        total += clock.elapsed();
+    for (group_name, parameters) in [("reference_motion_2s", &[][..]), ("damped_backlash_2s", &damped_backlash[..])] {
+        let mut group = c.benchmark_group(group_name);
+        group.sample_size(10);
+        for (name, fixed) in [("fixed_2e-6", true), ("error_control", false)] {
+            group.bench_function(name, |b| {
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    for _ in 0..iters {
+                        start(&mut inst, fixed, parameters);
+                        for k in 0..steps {
+                            let t = k as f64 * STEP;
+                            let inputs_now = values_at(t);
+                            let clock = Instant::now();
+                            inst.set_real(&inputs, &inputs_now).expect("fmi2SetReal");
+                            inst.do_step(t, STEP, true).expect("fmi2DoStep");
+                            inst.get_real(&outputs, &mut values).expect("fmi2GetReal");
+                            total += clock.elapsed();
+                        }
                     }
-                }
-                total
-            })
-        });
+                    total
+                })
+            });
+        }
+        group.finish();
     }
-    group.finish();
 }
 
 criterion_group!(benches, do_step);
