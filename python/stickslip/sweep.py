@@ -11,6 +11,11 @@
   at the end, also after Ctrl-C or a lost scheduler. ``DIR/sweep.json`` records what the
   results belong to (the SPEC's hash and the FMU's); rerunning the same command runs only
   the variants without a row, another SPEC or FMU into the same DIR is refused.
+* The convergence check (``--check-convergence``, :mod:`stickslip.convergence`): the task
+  of a checked variant runs it a second time with a tenfold tighter error tolerance and
+  adds ``<metric>_spread`` columns; which variants are checked (a seeded fraction) and how
+  is part of what sweep.json records, so a checked and an unchecked sweep are different
+  results.
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ from pathlib import Path
 
 from distributed import WorkerPlugin
 
+from .convergence import COLUMNS as CHECK_COLUMNS
+from .convergence import describe, run_checked, selected_runs, spread_columns, tightened
 from .fmu import content_hash, model_description
 from .motion import TableMotion, reference_inputs
 from .spec import Spec, SpecError, check_against
@@ -55,16 +62,47 @@ class FmuPlugin(WorkerPlugin):
         unpacked(self.data, self.digest)
 
 
+class Check:
+    """The convergence check of a sweep: the fraction of its variants checked (chosen by
+    :func:`stickslip.convergence.selected_runs` from the SPEC's seed) and, optionally, the
+    check run's parameter values (``rerun``; default: the FMU's error_tolerance / 10, or its
+    fixed sub-step halved, :func:`stickslip.convergence.tightened`)."""
+
+    def __init__(self, fraction: float = 1.0, rerun: dict | None = None):
+        if not 0 < fraction <= 1:
+            raise SpecError(f"--convergence-fraction {fraction:g}: must be in (0, 1]")
+        self.fraction = float(fraction)
+        self.rerun = dict(rerun) if rerun else None
+        self.method = "given"
+
+    def resolve(self, md) -> None:
+        """The check run's values for this FMU (its start values of the settings)."""
+        if self.rerun is None:
+            try:
+                self.rerun, self.method = tightened({}, md)
+            except ValueError as e:
+                raise SpecError(f"--check-convergence: {e}") from None
+        else:
+            self.method = f"given: {describe(self.rerun)}"
+
+    def record(self, n: int, seed: int) -> dict:
+        """What sweep.json records of the check (part of what identifies the results)."""
+        return {"fraction": self.fraction, "rerun": self.rerun, "method": self.method,
+                "checked": len(selected_runs(n, self.fraction, seed))}
+
+
 class ResultStore:
     """The rows of one sweep in DIR: part files, the consolidated results.parquet, sweep.json."""
 
-    def __init__(self, out: Path, spec: Spec, fmu_digest: str, columns: list):
+    def __init__(self, out: Path, spec: Spec, fmu_digest: str, columns: list, convergence: dict | None = None):
         import pyarrow as pa
 
         self.out = Path(out)
         self.parts = self.out / "parts"
         self.record = {"spec_sha256": spec.digest(), "fmu_sha256": fmu_digest, "spec": spec.canonical(),
                        "variants": len(spec)}
+        if convergence is not None:
+            self.record["convergence"] = convergence
         meta = self.out / "sweep.json"
         if meta.exists():
             old = json.loads(meta.read_text(encoding="utf-8"))
@@ -76,13 +114,18 @@ class ResultStore:
                                  if old.get("spec", {}).get(k) != self.record["spec"].get(k))
                 raise SweepError(f"{self.out} holds results of another SPEC (changed: {', '.join(changed)}); "
                                  f"use another --out, or remove {self.out} to start over")
+            if old.get("convergence") != convergence:
+                raise SweepError(f"{self.out} holds results of a sweep {_check_text(old.get('convergence'))}, "
+                                 f"this one is {_check_text(convergence)}; use another --out, or remove "
+                                 f"{self.out} to start over")
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
             meta.write_text(json.dumps(self.record, indent=1), encoding="utf-8")
         except OSError as e:
             raise SweepError(f"cannot write the results into {self.out}: {e.strerror}") from None
         types = {"run": pa.int64(), "status": pa.string(), "message": pa.string(), "worker": pa.string(),
-                 "finished": pa.timestamp("us", tz="UTC")}
+                 "finished": pa.timestamp("us", tz="UTC"), "convergence_status": pa.string(),
+                 "convergence_message": pa.string()}
         self.schema = pa.schema([(c, types.get(c, pa.float64())) for c in columns])
         self.waiting = []
         self.last_flush = time.monotonic()
@@ -181,6 +224,13 @@ class Progress:
             self.bar.close()
 
 
+def _check_text(convergence: dict | None) -> str:
+    if not convergence:
+        return "without --check-convergence"
+    return (f"with --check-convergence --convergence-fraction {convergence.get('fraction', '?'):g} "
+            f"({describe(convergence.get('rerun') or {})})")
+
+
 def _motion(spec: Spec, md):
     if spec.motion == "reference":
         return reference_inputs
@@ -191,9 +241,10 @@ def _motion(spec: Spec, md):
         raise SpecError(str(e)) from None
 
 
-def prepare(spec: Spec, out) -> tuple:
+def prepare(spec: Spec, out, check: Check | None = None) -> tuple:
     """Everything checked before a worker is asked for anything: (FMU bytes, its hash, the
-    motion, the store). Raises :class:`SpecError` or :class:`SweepError` naming the problem."""
+    motion, the store, the metric names). Raises :class:`SpecError` or :class:`SweepError`
+    naming the problem."""
     data = spec.fmu.read_bytes()
     digest = content_hash(data)
     try:
@@ -206,9 +257,15 @@ def prepare(spec: Spec, out) -> tuple:
     missing = [n for n in ("eps", "Q_friction", "W_drive") if n not in outputs]
     if missing:
         raise SpecError(f"fmu {spec.fmu}: has no output(s) {missing} for the metrics")
-    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metric_names(outputs)
+    metrics = metric_names(outputs)
+    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metrics
                + ["worker", "finished"])
-    return data, digest, motion, ResultStore(Path(out), spec, digest, columns)
+    convergence = None
+    if check is not None:
+        check.resolve(md)
+        columns += CHECK_COLUMNS + spread_columns(metrics)
+        convergence = check.record(len(spec), spec.seed)
+    return data, digest, motion, ResultStore(Path(out), spec, digest, columns, convergence), metrics
 
 
 def _client(scheduler: str | None, workers: int | None):
@@ -228,20 +285,27 @@ def _client(scheduler: str | None, workers: int | None):
 
 
 def run_sweep(spec: Spec, out, scheduler: str | None = None, workers: int | None = None,
-              timeout: float | None = None, retries: int = 2, progress_tty: bool | None = None) -> dict:
+              timeout: float | None = None, retries: int = 2, progress_tty: bool | None = None,
+              check: Check | None = None) -> dict:
     """Runs the variants of ``spec`` that have no row in ``out`` yet; returns {"rows": the
     consolidated DataFrame, "ran": how many ran now, "interrupted": bool, "seconds": wall time
-    from the first task submitted to the last row, "workers": number of worker threads}."""
-    data, digest, motion, store = prepare(spec, out)
+    from the first task submitted to the last row, "workers": number of worker threads,
+    "metrics": the metric names, "convergence": what sweep.json records of the check or None}.
+    ``check``: the convergence check (:class:`Check`), None for none."""
+    data, digest, motion, store, metrics = prepare(spec, out, check)
     variants = spec.variants()
     done = store.done()
     todo = [i for i in range(len(variants)) if i not in done]
-    print(f"sweep: {len(variants)} variants, {len(done)} already in {store.out}, {len(todo)} to run", flush=True)
-    stats = {"ran": 0, "interrupted": False, "seconds": 0.0, "workers": 0}
+    checked = selected_runs(len(variants), check.fraction, spec.seed) if check is not None else None
+    print(f"sweep: {len(variants)} variants, {len(done)} already in {store.out}, {len(todo)} to run"
+          + (f"; convergence check of {len(checked)} ({check.method})" if check is not None else ""), flush=True)
+    stats = {"ran": 0, "interrupted": False, "seconds": 0.0, "workers": 0, "metrics": metrics,
+             "convergence": store.record.get("convergence")}
     if todo:
+        task = _task(check, checked, metrics)
         try:
             _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
-                     progress_tty, stats)
+                     progress_tty, stats, task)
         except KeyboardInterrupt:
             stats["interrupted"] = True
             print(f"\nsweep: interrupted; {len(done) + stats['ran']} of {len(variants)} variants in {store.out}. "
@@ -253,8 +317,15 @@ def run_sweep(spec: Spec, out, scheduler: str | None = None, workers: int | None
     return stats
 
 
+def _task(check: Check | None, checked: set | None, metrics: list):
+    """(the function a worker runs for a variant, its extra arguments for run ``run``)."""
+    if check is None:
+        return run_variant, lambda run: ()
+    return run_checked, lambda run: (metrics, check.rerun if run in checked else None)
+
+
 def _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
-             progress_tty, stats):
+             progress_tty, stats, task=None):
     from distributed import as_completed
 
     client, cluster = _client(scheduler, workers)
@@ -272,9 +343,16 @@ def _execute(spec, store, variants, todo, data, digest, motion, scheduler, worke
         queue = iter(todo)
         pending = {}
 
+        function, extra = task or _task(None, None, [])
+        # a checked sweep's tasks differ from an unchecked one's (and between check settings)
+        tag = "" if function is not run_checked else "c" + content_hash(
+            json.dumps(store.record.get("convergence"), sort_keys=True).encode())[:6]
+
         def submit(run):
-            f = client.submit(run_variant, digest, run, variants[run], spec.stop_time, spec.communication_step,
-                              motion, timeout, key=f"variant-{digest[:8]}-{store.record['spec_sha256'][:8]}-{run}",
+            args = (digest, run, variants[run], spec.stop_time, spec.communication_step, motion)
+            args += (*extra(run), timeout) if function is run_checked else (timeout,)
+            f = client.submit(function, *args,
+                              key=f"variant{tag}-{digest[:8]}-{store.record['spec_sha256'][:8]}-{run}",
                               retries=retries, pure=False)
             pending[f] = run
             return f
