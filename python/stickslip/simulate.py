@@ -10,6 +10,13 @@ Command line (the main job uses it)::
 
     stickslip simulate [--fmu FILE] [--out results/reference.csv]
         [--end 2.0] [--interval 1e-3] [--set NAME=VALUE ...]
+        [--check-convergence [--convergence-threshold 0.01]]
+
+``--check-convergence`` runs the motion a second time with a tenfold tighter
+``error_tolerance`` (fixed sub-steps: halved), prints the relative spread of every
+metric of a sweep row between the two runs (:mod:`stickslip.convergence`), warns on
+the terminal when one exceeds the threshold, and writes them to OUT with the suffix
+``.convergence.json``.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from .convergence import DEFAULT_THRESHOLD
 from .fmu import DEFAULT_FMU, ROOT, communication_points, initialize, input_references
 from .motion import RUN_TIME, reference_inputs
 
@@ -94,6 +102,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--end", type=float, default=RUN_TIME)
     p.add_argument("--interval", type=float, default=1e-3)
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
+    p.add_argument("--check-convergence", action="store_true",
+                   help="run again with a tenfold tighter error_tolerance (fixed sub-steps: halved), print the "
+                        "relative spread of each metric, warn above --convergence-threshold (docs/convergence.md)")
+    p.add_argument("--convergence-threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
+                   help=f"spread above which a metric is not converged (default {DEFAULT_THRESHOLD:g})")
 
 
 def main(a: argparse.Namespace) -> int:
@@ -108,5 +121,55 @@ def main(a: argparse.Namespace) -> int:
     write_csv(result, a.out)
     print(f"simulated {a.end} s through {a.fmu} in {simulated - wall:.2f} s wall "
           f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s")
+    if a.check_convergence:
+        check = convergence_of(result, a.fmu, a.end, a.interval, parameters, a.convergence_threshold)
+        path = Path(a.out).with_suffix(".convergence.json")
+        write_convergence(check, path)
+        print(check.report())
+        print(f"wrote {path}")
+        if check.status != "checked":
+            print(f"WARNING: the convergence check run ended {check.status}: {check.message}", file=sys.stderr)
+        elif check.warning():
+            print(check.warning(), file=sys.stderr, flush=True)
     return 0
+
+
+def convergence_of(result: dict, fmu, end: float, interval: float, parameters: dict,
+                   threshold: float = DEFAULT_THRESHOLD, inputs=reference_inputs):
+    """The convergence check of a :func:`run` result: the same run again with the tightened
+    settings (:func:`stickslip.convergence.tightened`), the sweep's metrics of both and their
+    spreads; a :class:`stickslip.convergence.Convergence`."""
+    from fmpy import read_model_description
+
+    from .convergence import CHECKED, Convergence, metrics_of_series, spreads, tightened
+
+    rerun, method = tightened(parameters, read_model_description(str(fmu)))
+    metrics = metrics_of_series(result)
+    check = Convergence("error", rerun, method, threshold, metrics, spreads=dict.fromkeys(metrics, float("nan")))
+    wall = time.perf_counter()
+    try:
+        tight = run(fmu, end, interval, {**parameters, **rerun}, inputs, progress="convergence check run")
+    except Exception as e:  # noqa: BLE001 -- the main run's CSV is written; report the check's failure
+        status = getattr(e, "status", None)
+        check.status = "discard" if status == 2 else "error"
+        check.message = f"{type(e).__name__}: {e}"
+        return check
+    check.seconds = (float("nan"), time.perf_counter() - wall)
+    check.tight = metrics_of_series(tight)
+    check.status = CHECKED
+    check.spreads = spreads(check.metrics, check.tight, list(metrics))
+    return check
+
+
+def write_convergence(check, path) -> None:
+    """A :class:`stickslip.convergence.Convergence` as JSON: settings, both runs' metrics,
+    spreads, and the metrics above the threshold."""
+    import json
+    import math
+
+    clean = lambda d: {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}  # noqa: E731
+    Path(path).write_text(json.dumps({
+        "status": check.status, "message": check.message, "rerun": check.rerun, "method": check.method,
+        "threshold": check.threshold, "not_converged": check.not_converged, "metrics": clean(check.metrics),
+        "check_run_metrics": clean(check.tight), "spreads": clean(check.spreads)}, indent=1), encoding="utf-8")
 
