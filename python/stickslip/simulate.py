@@ -10,7 +10,7 @@ Command line (the main job uses it)::
 
     stickslip simulate [--fmu FILE] [--out results/reference.csv]
         [--end 2.0] [--interval 1e-3] [--set NAME=VALUE ...]
-        [--check-convergence [--convergence-threshold 0.01]]
+        [--check-convergence [--convergence-threshold 0.003]]
 
 ``--check-convergence`` runs the motion a second time with a tenfold tighter
 ``error_tolerance`` (fixed sub-steps: halved), prints the relative spread of every
