@@ -40,8 +40,8 @@
 //! next length is h·0.9·r^(−1/2), limited to [0.2, 2]·h so that the stepper
 //! neither oscillates nor collapses, and to [h_min, h_max].
 
+use super::newmark::PreviousSubStep;
 use super::state::{Phase, State};
-use crate::data::Data;
 use crate::forces::drive::clearance_margin;
 use crate::model::{Drive, Model};
 
@@ -54,11 +54,10 @@ pub(crate) const SHRINK_MIN: f64 = 0.2;
 
 /// The local error of the sub-step of length `h` from `start` to `state`,
 /// relative to the tolerance: accepted when ≤ 1 (see the module doc).
-/// `previous` holds the accelerations at the start of the sub-step before and
-/// its length (for the velocity error; `None` right after a restart), `data`
-/// the mass matrix of the last Newton matrix (for the joints' frequencies).
+/// `previous` is the sub-step before, for the velocity error (`None` right
+/// after a restart of the solver: then only the position error counts).
 #[inline(always)]
-pub(crate) fn error_ratio(model: &Model, data: &Data, start: &State, state: &State, h: f64, previous: Option<(&[f64], f64)>) -> f64 {
+pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64, previous: Option<PreviousSubStep>) -> f64 {
     let s = model.integrator;
     let n = model.nq();
     let coefficient = (s.beta - 1.0 / 6.0).abs() * h * h;
@@ -69,8 +68,8 @@ pub(crate) fn error_ratio(model: &Model, data: &Data, start: &State, state: &Sta
         let (Drive::Flexible { stiffness, clearance, .. }, Phase::Slipping(_)) = (joint.drive, phase[i]) else { continue };
         let change = qdd1[i] - qdd0[i];
         let mut error = coefficient * change.abs();
-        let mass = data.mass_matrix[(i, i)];
-        if let (Some((qdd_before, h_before)), true) = (previous, mass > 0.0) {
+        if let Some(PreviousSubStep { qdd: qdd_before, h: h_before, mass_diagonal }) = previous {
+            let mass = mass_diagonal[i];
             // q⁗ from the second difference of q̈ over this and the last sub-step.
             let fourth = 2.0 * (change / h - (qdd0[i] - qdd_before[i]) / h_before) / (h + h_before);
             let velocity_error = (s.gamma - 0.5) * h * change + (0.5 * s.gamma - 1.0 / 6.0) * h * h * h * fourth;
@@ -152,7 +151,7 @@ mod tests {
             assert!(relative < 0.5 * omega_h, "ωh = {omega_h}: estimate {estimate} vs local error {local_error}");
             let tol = model.integrator.error_tolerance;
             let weight = end.q[0].abs() + 1e-15 * (1.0 + end.q[0].abs());
-            let ratio = error_ratio(&model, sim.data(), &start, end, h, None);
+            let ratio = error_ratio(&model, &start, end, h, None);
             assert!((ratio * tol * weight * h - estimate.abs()).abs() <= 1e-12 * estimate.abs(), "ratio {ratio}");
         }
     }

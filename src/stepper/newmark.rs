@@ -63,11 +63,27 @@ pub(crate) struct NewmarkSolver {
     newton_step: Vec<f64>,
     /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
     iterations: u64,
+    /// Diagonal of the mass matrix of the last Newton matrix built since the
+    /// last restart (empty before one is built): the joints' frequencies for
+    /// the error estimate, from the state and inputs alone, so that a restored
+    /// state continues exactly.
+    mass_diagonal: Vec<f64>,
     /// Per joint: whether its drive transmitted force at the last iterate,
     /// and how often that changed in the current sub-step's iteration (the
     /// diagnosis of a failure, [`NonConvergence`]).
     engaged: Vec<bool>,
     engagement_changes: Vec<u32>,
+}
+
+/// The sub-step before the current one, for the velocity error estimate
+/// (see [`NewmarkSolver::previous_sub_step`]).
+pub(crate) struct PreviousSubStep<'a> {
+    /// Refined q̈ at its start.
+    pub qdd: &'a [f64],
+    /// Its length, s.
+    pub h: f64,
+    /// Diagonal of the joint-space mass matrix.
+    pub mass_diagonal: &'a [f64],
 }
 
 /// What a sub-step reads besides the state it solves: the model, the
@@ -97,15 +113,22 @@ impl NewmarkSolver {
             accepted_qdd: vec![0.0; n],
             newton_step: vec![0.0; n],
             iterations: 0,
+            mass_diagonal: Vec::with_capacity(n),
             engaged: vec![false; n],
             engagement_changes: vec![0; n],
         }
     }
 
-    /// The refined q̈ at the start of the previous sub-step and that
-    /// sub-step's length, when the history has it.
-    pub fn previous_start(&self) -> Option<(&[f64], f64)> {
-        (self.predictor_depth >= 1).then(|| (&self.qdd_history[1][..], self.previous_h[0]))
+    /// What the velocity error estimate needs besides the sub-step itself,
+    /// once the history since the last restart has it: the refined q̈ at the
+    /// start of the previous sub-step, that sub-step's length and the mass
+    /// matrix's diagonal.
+    pub fn previous_sub_step(&self) -> Option<PreviousSubStep<'_>> {
+        (self.predictor_depth >= 1 && !self.mass_diagonal.is_empty()).then(|| PreviousSubStep {
+            qdd: &self.qdd_history[1],
+            h: self.previous_h[0],
+            mass_diagonal: &self.mass_diagonal,
+        })
     }
 
     /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
@@ -125,6 +148,7 @@ impl NewmarkSolver {
     pub fn restart(&mut self, qdd: &[f64]) {
         self.newton_valid = false;
         self.predictor_depth = 0;
+        self.mass_diagonal.clear();
         self.qdd_history[0].copy_from_slice(qdd);
     }
 
@@ -249,6 +273,8 @@ impl NewmarkSolver {
                 // kinematics, of the coordinates the inverse dynamics used.
                 forward_kinematics_at_transforms(model, data);
                 crba(model, data);
+                self.mass_diagonal.clear();
+                self.mass_diagonal.extend((0..model.nq()).map(|i| data.mass_matrix[(i, i)]));
                 self.factor_newton_matrix(model, data, state, open, h, beta, gamma)?;
                 self.newton_valid = true;
                 self.newton_h = h;

@@ -79,7 +79,7 @@ impl Simulator {
             if control == StepControl::Fixed {
                 break 1.0;
             }
-            let ratio = error_ratio(&self.model, &self.data, &self.start, &self.state, h, self.solver.previous_start());
+            let ratio = error_ratio(&self.model, &self.start, &self.state, h, self.solver.previous_sub_step());
             let factor = optimal_factor(ratio);
             // At the floor (up to the rounding of t0 + h − t0) the step is taken.
             if ratio > 1.0 && h > settings.h_min * (1.0 + 1e-9) {
