@@ -103,8 +103,18 @@ fn do_step(c: &mut Criterion) {
     .into_iter()
     .map(|(name, value)| (vr(name), value))
     .collect();
+    let decreasing: Vec<(u32, f64)> = [1, 3]
+        .into_iter()
+        .flat_map(|j| [(format!("mu_s[{j}]"), 0.2), (format!("mu_k[{j}]"), 0.12), (format!("v_s[{j}]"), 0.01)])
+        .map(|(name, value)| (vr(&name), value))
+        .collect();
     let mut values = vec![0.0; outputs.len()];
-    for (group_name, parameters) in [("reference_motion_2s", &[][..]), ("damped_backlash_2s", &damped_backlash[..])] {
+    let groups = [
+        ("reference_motion_2s", &[][..]),
+        ("damped_backlash_2s", &damped_backlash[..]),
+        ("decreasing_characteristic_2s", &decreasing[..]),
+    ];
+    for (group_name, parameters) in groups {
         let mut group = c.benchmark_group(group_name);
         group.sample_size(10);
         for (name, fixed) in [("fixed_2e-6", true), ("error_control", false)] {
