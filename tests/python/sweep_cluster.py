@@ -17,6 +17,10 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+import pytest
+
+from helpers import require_fmu
+
 DASK = str(Path(sys.executable).with_name("dask"))
 STICKSLIP = str(Path(sys.executable).with_name("stickslip"))
 
@@ -96,3 +100,18 @@ def sweep(*args, **kw) -> subprocess.CompletedProcess:
 def sweep_process(*args) -> subprocess.Popen:
     return subprocess.Popen([STICKSLIP, "sweep", *map(str, args)], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A loopback cluster for the tests of one module (import this fixture there)."""
+    require_fmu()
+    with loopback_cluster(tmp_path_factory.mktemp("dask")) as c:
+        yield c
+
+
+def write_spec(path, body: str, stop_time=0.1, step=1e-3):
+    """A SPEC file at `path`: the reference motion through the FMU under test, then `body`."""
+    path.write_text(f'stop_time = {stop_time}\ncommunication_step = {step}\nmotion = "reference"\n'
+                    f'fmu = "{require_fmu()}"\n' + body)
+    return path

@@ -31,7 +31,7 @@ import pandas as pd
 import pytest
 
 from helpers import model_description, require_fmu
-from sweep_cluster import STICKSLIP, loopback_cluster, sweep
+from sweep_cluster import STICKSLIP, cluster, sweep, write_spec  # noqa: F401 (cluster: a fixture)
 
 from stickslip import convergence
 from stickslip.convergence import check_convergence, selected_runs, spread, spread_name
@@ -49,17 +49,6 @@ def friction(mu: float) -> dict:
 SENSITIVE_MU = (0.28, 0.3, 0.36)
 
 
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    require_fmu()
-    with loopback_cluster(tmp_path_factory.mktemp("dask")) as c:
-        yield c
-
-
-def write_spec(path, body: str, stop_time=0.1, step=1e-3):
-    path.write_text(f'stop_time = {stop_time}\ncommunication_step = {step}\nmotion = "reference"\n'
-                    f'fmu = "{require_fmu()}"\n' + body)
-    return path
 
 
 def default_tolerance() -> float:

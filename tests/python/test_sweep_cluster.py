@@ -26,22 +26,11 @@ import pandas as pd
 import pytest
 
 from helpers import FLEXIBLE, Slave, input_vector, require_fmu
-from sweep_cluster import loopback_cluster, sweep, sweep_process
+from sweep_cluster import cluster, loopback_cluster, sweep, sweep_process, write_spec  # noqa: F401 (cluster: a fixture)
 
 JOINTS = (1, 2, 3, 4)
 
 
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    require_fmu()
-    with loopback_cluster(tmp_path_factory.mktemp("dask")) as c:
-        yield c
-
-
-def write_spec(path, body: str, stop_time=0.1, step=1e-3):
-    path.write_text(f'stop_time = {stop_time}\ncommunication_step = {step}\nmotion = "reference"\n'
-                    f'fmu = "{require_fmu()}"\n' + body)
-    return path
 
 
 def k3_grid(n: int) -> str:
