@@ -25,7 +25,7 @@ def _sweep_arguments(p: argparse.ArgumentParser) -> None:
     c.add_argument("--check-convergence", action="store_true",
                    help="run each variant (or --convergence-fraction of them) again with a tenfold tighter "
                         "error_tolerance (fixed sub-steps: halved) and record the relative spread of every "
-                        "metric in a column <metric>_spread")
+                        "metric in a column <metric>_spread (n_stick_spread[i] for a joint's)")
     c.add_argument("--convergence-fraction", type=float, metavar="F",
                    help="check this fraction of the variants, chosen by the SPEC's seed (default 1.0)")
     c.add_argument("--convergence-threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",

@@ -72,9 +72,11 @@ def spread(x, x_tight, floor: float = SPREAD_FLOOR):
 
 
 def spread_name(metric: str) -> str:
-    """The column of a metric's spread: ``final_eps`` -> ``final_eps_spread``,
-    ``n_stick[3]`` -> ``n_stick[3]_spread``."""
-    return metric + SPREAD_SUFFIX
+    """The column of a metric's spread, the suffix before a joint index: ``final_eps`` ->
+    ``final_eps_spread``, ``n_stick[3]`` -> ``n_stick_spread[3]`` (as the FMU names its
+    per-joint variables)."""
+    base, bracket, index = metric.partition("[")
+    return base + SPREAD_SUFFIX + bracket + index
 
 
 def spread_columns(metrics) -> list:

@@ -76,7 +76,7 @@ def test_spread_formula_against_hand_computed_numbers():
     s = {"max_eps": 0.001, "final_eps": 0.3, "n_stick[3]": 0.2, "n_stick[1]": float("nan")}
     assert convergence.not_converged(s, 0.01) == ["final_eps", "n_stick[3]"]
     assert convergence.not_converged(s, 0.25) == ["final_eps"]
-    assert spread_name("n_stick[3]") == "n_stick[3]_spread"
+    assert spread_name("n_stick[3]") == "n_stick_spread[3]"
 
 
 def test_seeded_fraction_selects_the_same_variants():
