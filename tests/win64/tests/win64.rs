@@ -3,7 +3,7 @@
 //! the way a Windows master loads it (resources from a `file:///C:/…` URI),
 //! runs the 2 s reference motion with the very inputs the linux64 run used
 //! (tests/linux64.rs) and must reproduce it: the same stick flags and stiction
-//! counts at every step, every other output within 1e-9 of its largest
+//! counts at every step, every other output within 1e-8 of its largest
 //! magnitude. A state serialized by linux64 is restored here; the win64 run
 //! and its state go to `$STICKSLIP_XPLAT_DIR` for tests/linux64_after_win64.rs.
 
