@@ -3,6 +3,8 @@
 //! `file:/tmp/fmu%20x/resources` or `file://localhost/tmp/…`; on Windows
 //! `file:///C:/dir/resources` (the drive letter follows the root slash, which
 //! is not part of the local path) or `file://server/share/…` (a UNC path).
+//! On macOS the Unix forms: `file:///Users/…`, `file://localhost/Users/…`,
+//! `file:///private/var/folders/…` (a temporary directory).
 
 use std::path::PathBuf;
 
@@ -215,6 +217,41 @@ mod tests {
         for uri in ["", "resources", "C:", "dir\\r", "http://example.com/r", "file://", "file:C:/x", "file:///C:/%zz", "file:///C:/r?x=1"] {
             let err = local_path(uri, PathSyntax::Windows).expect_err(uri);
             assert!(!err.is_empty(), "{uri}");
+        }
+    }
+
+    /// The forms a master on macOS passes (fmpy's `Path.as_uri()` of a temporary
+    /// directory under `/private/var/folders`, OMSimulator's and FMPy's GUI's
+    /// `file:///Users/…`, the `localhost` form); macOS paths are Unix paths, so
+    /// the host syntax there is `PathSyntax::Unix`, tested here on Linux.
+    #[test]
+    fn macos_forms_are_unix_paths() {
+        assert_eq!(ok("file:///Users/jane/Models/StickSlip/resources"), PathBuf::from("/Users/jane/Models/StickSlip/resources"));
+        assert_eq!(ok("file://localhost/Users/jane/Models/StickSlip/resources/"), PathBuf::from("/Users/jane/Models/StickSlip/resources/"));
+        assert_eq!(
+            ok("file:///private/var/folders/7x/k2_5t9_n0bq3_h9c1d4w8r6m0000gn/T/tmpa1b2c3d4/resources"),
+            PathBuf::from("/private/var/folders/7x/k2_5t9_n0bq3_h9c1d4w8r6m0000gn/T/tmpa1b2c3d4/resources")
+        );
+        assert_eq!(ok("file:///Users/Jane%20Doe/My%20FMUs/resources"), PathBuf::from("/Users/Jane Doe/My FMUs/resources"));
+        assert_eq!(ok("file:/Users/jane/r"), PathBuf::from("/Users/jane/r"));
+        assert_eq!(ok("/Users/jane/Models/resources"), PathBuf::from("/Users/jane/Models/resources"));
+        // The volume of an external disk.
+        assert_eq!(ok("file:///Volumes/Data%201/fmu/resources"), PathBuf::from("/Volumes/Data 1/fmu/resources"));
+    }
+
+    /// macOS's file system stores names decomposed (NFD: `a` + U+0308 for `ä`),
+    /// and a master encodes the name's bytes as they are: they must reach the
+    /// file system unchanged, not recomposed.
+    #[test]
+    fn macos_decomposed_names_pass_byte_for_byte() {
+        let bytes = local_path("file:///Users/j%C3%BCrgen/Mo%CC%88bel/resources", PathSyntax::Unix).expect("valid");
+        assert_eq!(bytes, "/Users/jürgen/Mo\u{308}bel/resources".as_bytes());
+    }
+
+    #[test]
+    fn macos_rejects_a_remote_host() {
+        for uri in ["file://jane-mbp.local/Users/jane/r", "file://Users/jane/r"] {
+            assert!(local_path(uri, PathSyntax::Unix).is_err(), "{uri}");
         }
     }
 
