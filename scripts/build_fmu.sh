@@ -3,19 +3,30 @@
 #
 #   bash scripts/build_fmu.sh [--platforms linux64,win64] [package_fmu args...]
 #
-#   --platforms LIST  the FMU binaries to build, comma-separated; default
-#                     `linux64,win64` (both). `--platforms linux64` skips the
-#                     Windows cross-build while iterating.
+#   --platforms LIST  the FMU binaries to build, comma-separated, of linux64,
+#                     win64, darwin64; default `linux64,win64`. `--platforms
+#                     linux64` skips the Windows cross-build while iterating;
+#                     `--platforms linux64,win64,darwin64` adds the macOS
+#                     universal dylib (scripts/darwin64.sh; its toolchain, the
+#                     PyPI package ziglang, is installed only then).
 #
 #   1. linux64: cargo build --release --lib --bin package_fmu   (the cdylib;
 #      build.rs also writes modelDescription/modelDescription.xml)
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
 #      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir target/win64
+#   2b. darwin64 (when asked for): the same library cross-built for
+#      x86_64-apple-darwin and aarch64-apple-darwin (scripts/darwin64.sh),
+#      target dir target/darwin64, merged by llvm-lipo into one universal dylib
 #   3. copies stripped of debug info and symbol table (strip --strip-all, into
 #      target/fmu/stripped/): the FMU ships those; target/release and
-#      target/win64/…/release keep the debug info for local profiling
+#      target/win64/…/release keep the debug info for local profiling (the
+#      darwin64 dylib is linked stripped: stripping afterwards would break
+#      the arm64 slice's code signature)
 #   4. checks every shipped binary's interface: exactly the 34 FMI 2.0
-#      functions exported; the DLL imports Windows system DLLs only
+#      functions exported; the DLL imports Windows system DLLs only; each
+#      darwin64 slice imports libSystem only, has the install name
+#      @rpath/StickSlipManipulator.dylib, the minimum macOS 10.13 (x86_64) or
+#      11.0 (arm64), no local or debug symbols, and arm64 a code signature
 #   5. package_fmu: target/fmu/StickSlipManipulator.fmu (or --out FILE) from the
 #      reference model (or --model FILE)
 #   6. fmpy.validation of the FMU, when the venv has fmpy
@@ -25,8 +36,6 @@ set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
-# shellcheck source=scripts/env.sh
-source scripts/env.sh
 
 platforms="linux64,win64"
 pass=()
@@ -38,13 +47,14 @@ while [ $# -gt 0 ]; do
         *) pass+=("$1"); shift ;;
     esac
 done
-linux64=0 win64=0
+linux64=0 win64=0 darwin64=0
 IFS=, read -r -a wanted <<<"$platforms"
 for p in "${wanted[@]}"; do
     case "$p" in
         linux64) linux64=1 ;;
         win64) win64=1 ;;
-        *) echo "build_fmu.sh: unknown platform '$p' (linux64, win64; darwin64 cannot be built here)" >&2; exit 2 ;;
+        darwin64) darwin64=1 ;;
+        *) echo "build_fmu.sh: unknown platform '$p' (linux64, win64, darwin64)" >&2; exit 2 ;;
     esac
 done
 if [ "$linux64" -eq 0 ]; then
@@ -52,6 +62,10 @@ if [ "$linux64" -eq 0 ]; then
     echo "build_fmu.sh: --platforms must include linux64" >&2
     exit 2
 fi
+# env.sh installs the darwin64 toolchain only when asked to.
+if [ "$darwin64" -eq 1 ]; then export STICKSLIP_DARWIN64=1; fi
+# shellcheck source=scripts/env.sh
+source scripts/env.sh
 
 TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
@@ -99,6 +113,46 @@ if [ "$win64" -eq 1 ]; then
     fi
     echo "build_fmu.sh: win64 $(size "$WIN64_RELEASE/stick_slip_manipulator.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports)"
     package_args+=(--win64-lib "$DLL")
+fi
+
+if [ "$darwin64" -eq 1 ]; then
+    # shellcheck source=scripts/darwin64.sh
+    source scripts/darwin64.sh
+    darwin64_build
+    DYLIB="$DARWIN64_DYLIB"
+    objdump=$(_darwin64_llvm llvm-objdump) nm=$(_darwin64_llvm llvm-nm) lipo=$(_darwin64_llvm llvm-lipo)
+    arch="universal"
+    darwin_fail() { echo "build_fmu.sh: $DYLIB ($arch): $*" >&2; exit 1; }
+    archs=$(echo $("$lipo" -archs "$DYLIB"))
+    [ "$archs" = "x86_64 arm64" ] || darwin_fail "slices '$archs', expected 'x86_64 arm64'"
+    summary=()
+    for arch in x86_64 arm64; do
+        headers=$("$objdump" --macho --private-headers --arch="$arch" "$DYLIB")
+        # Exports: the export trie, `_fmi2…` (Mach-O names carry a leading underscore).
+        exports=$("$objdump" --macho --exports-trie --arch="$arch" "$DYLIB" | awk '/^0x/ {print $2}')
+        nonunderscore=$(printf '%s\n' "$exports" | grep -v '^_' || true)
+        [ -z "$nonunderscore" ] || darwin_fail "exports names without the leading underscore: $nonunderscore"
+        printf '%s\n' "$exports" | sed 's/^_//' | check_exports "$DYLIB ($arch)"
+        # Load commands: the dylibs loaded (any kind), the install name, the minimum macOS.
+        loads=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd != "LC_ID_DYLIB" && cmd ~ /DYLIB/ {print cmd, $2}')
+        [ "$loads" = "LC_LOAD_DYLIB $DARWIN64_SYSTEM_LIBS" ] || darwin_fail "loads '$loads', expected only $DARWIN64_SYSTEM_LIBS"
+        ! printf '%s\n' "$headers" | grep -q 'cmd LC_RPATH' || darwin_fail "has an LC_RPATH"
+        id=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd == "LC_ID_DYLIB" {print $2}')
+        [ "$id" = "$DARWIN64_INSTALL_NAME" ] || darwin_fail "install name '$id', expected $DARWIN64_INSTALL_NAME"
+        minos=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} (cmd == "LC_BUILD_VERSION" && $1 == "minos") || (cmd == "LC_VERSION_MIN_MACOSX" && $1 == "version") {print $2}')
+        want=$([ "$arch" = arm64 ] && echo 11.0 || echo 10.13)
+        [ -n "$minos" ] && [ "$(printf '%s\n%s\n' "$minos" "$want" | sort -V | tail -n1)" = "$want" ] ||
+            darwin_fail "minimum macOS '$minos', at most $want wanted"
+        # Stripped: only the exports and the undefined imports in the symbol table.
+        local_syms=$("$nm" -a --arch="$arch" "$DYLIB" | awk '$(NF-1) != "T" && $(NF-1) != "U"' | head -n5)
+        [ -z "$local_syms" ] || darwin_fail "symbols other than exports and imports (not stripped): $local_syms"
+        sig=""
+        if printf '%s\n' "$headers" | grep -q 'cmd LC_CODE_SIGNATURE'; then sig=", signed"; fi
+        [ "$arch" = x86_64 ] || [ -n "$sig" ] || darwin_fail "no LC_CODE_SIGNATURE (Apple silicon loads no unsigned code)"
+        summary+=("$arch: macOS $minos$sig")
+    done
+    echo "build_fmu.sh: darwin64 $(size "$DYLIB") bytes, stripped, universal ($(printf '%s; ' "${summary[@]}" | sed 's/; $//')); imports: $DARWIN64_SYSTEM_LIBS; install name $DARWIN64_INSTALL_NAME"
+    package_args+=(--darwin64-lib "$DYLIB")
 fi
 
 "$TARGET_DIR/release/package_fmu" "${package_args[@]}" ${pass[@]+"${pass[@]}"}

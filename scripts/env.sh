@@ -17,6 +17,9 @@
 #   * the Debian packages of the win64 cross-build and its wine tests are
 #     installed (apt-get when missing): rustc-web, cargo-web, rust-web-src,
 #     gcc-mingw-w64-x86-64, wine64, wine (see _stickslip_ensure_win64_packages).
+#   * only with STICKSLIP_DARWIN64=1 (scripts/build_fmu.sh sets it for
+#     `--platforms ...,darwin64`): Debian's llvm-14 and the PyPI package
+#     `ziglang` in a venv of its own (see _stickslip_ensure_darwin64).
 #   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
 #
 # Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
@@ -89,6 +92,52 @@ _stickslip_ensure_win64_packages() {
     fi
     # shellcheck disable=SC2086
     _stickslip_apt_install $missing || return 1
+}
+
+_stickslip_ensure_darwin64() {
+    # Only when the darwin64 binary is to be built (STICKSLIP_DARWIN64=1, set by
+    # scripts/build_fmu.sh for `--platforms ...,darwin64`); the default path
+    # installs nothing of it. See scripts/darwin64.sh:
+    #   llvm-14                Debian's LLVM tools: llvm-lipo (the universal
+    #                          file), llvm-objdump, llvm-nm (the checks)
+    #   lld-19                 ld64.lld, only if the rustup toolchain has no rust-lld
+    #   ziglang (PyPI)         zig cc and the macOS libSystem stubs, pinned in
+    #                          scripts/darwin64-requirements.txt, in a venv of
+    #                          its own: $STICKSLIP_ZIG_VENV, default
+    #                          <target>/darwin64/zig-venv (re-installed when
+    #                          that file changes)
+    local root="$1" venv req want have="" py
+    [ "${STICKSLIP_DARWIN64:-0}" = 1 ] || return 0
+    if ! command -v llvm-lipo-14 >/dev/null 2>&1 && ! command -v llvm-lipo >/dev/null 2>&1; then
+        if [ "${STICKSLIP_SKIP_APT:-0}" = 1 ]; then
+            _stickslip_log "WARNING: llvm-lipo missing and STICKSLIP_SKIP_APT=1; the darwin64 build will fail"
+        else
+            _stickslip_apt_install llvm-14 || return 1
+        fi
+    fi
+    # The Mach-O linker: rustup's rust-lld (rustc's own component), else Debian's lld-19.
+    if ! { command -v rustc >/dev/null 2>&1 && [ -x "$(rustc --print sysroot 2>/dev/null)/lib/rustlib/$(rustc -vV 2>/dev/null | sed -n 's/^host: //p')/bin/rust-lld" ]; } &&
+        ! command -v ld64.lld >/dev/null 2>&1 && ! command -v ld64.lld-19 >/dev/null 2>&1; then
+        if [ "${STICKSLIP_SKIP_APT:-0}" = 1 ]; then
+            _stickslip_log "WARNING: no ld64.lld and STICKSLIP_SKIP_APT=1; the darwin64 build will fail"
+        else
+            _stickslip_apt_install lld-19 || return 1
+        fi
+    fi
+    venv="${STICKSLIP_ZIG_VENV:-${CARGO_TARGET_DIR:-$root/target}/darwin64/zig-venv}"
+    req="$root/scripts/darwin64-requirements.txt"
+    py="${PYTHON:-python3}"
+    want=$(sha256sum "$req" | cut -d' ' -f1) || return 1
+    [ -f "$venv/.requirements.sha256" ] && have=$(cat "$venv/.requirements.sha256")
+    [ "$want" = "$have" ] && [ -x "$venv/bin/python" ] && return 0
+    _stickslip_log "installing the darwin64 toolchain ($(grep -v '^#' "$req" | tr '\n' ' ')) into $venv..."
+    if [ ! -x "$venv/bin/python" ]; then
+        rm -rf "$venv"
+        "$py" -m venv "$venv" </dev/null >&2 || { _stickslip_log "ERROR: '$py -m venv $venv' failed"; return 1; }
+    fi
+    PIP_DISABLE_PIP_VERSION_CHECK=1 "$venv/bin/python" -m pip install -q --no-input -r "$req" </dev/null >&2 || {
+        _stickslip_log "ERROR: pip install -r $req failed"; return 1; }
+    printf '%s\n' "$want" >"$venv/.requirements.sha256"
 }
 
 _stickslip_ensure_libclang() {
@@ -165,6 +214,7 @@ _stickslip_env_main() {
     _stickslip_ensure_libclang || return 1
     _stickslip_ensure_win64_packages || return 1
     _stickslip_ensure_venv "$root" "$venv" || return 1
+    _stickslip_ensure_darwin64 "$root" || return 1
 
     export VIRTUAL_ENV="$venv"
     case ":$PATH:" in
@@ -181,7 +231,7 @@ else
     _stickslip_env_rc=1
     _stickslip_log "environment setup FAILED"
 fi
-unset -f _stickslip_env_main _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
+unset -f _stickslip_env_main _stickslip_ensure_darwin64 _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
 # `return` when sourced, `exit` when run as a script.
 if [ "$_stickslip_env_rc" -eq 0 ]; then
     unset _stickslip_env_rc

@@ -1,6 +1,6 @@
 //! Packs an FMI 2.0 co-simulation FMU from a model file.
 //!
-//! Usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE]
+//! Usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--darwin64-lib FILE] [--out FILE]
 //!
 //! * `--model`: the model file (TOML) the FMU runs; default: the reference
 //!   manipulator, `models/reference_rrpr.toml` as compiled into the crate.
@@ -8,12 +8,16 @@
 //!   next to this executable (`cargo build --release` puts both there).
 //! * `--win64-lib`: the win64 DLL (`scripts/build_fmu.sh` cross-builds it);
 //!   without it the FMU has no win64 binary.
+//! * `--darwin64-lib`: the universal (x86_64 + arm64) macOS dylib
+//!   (`scripts/build_fmu.sh --platforms linux64,win64,darwin64` cross-builds
+//!   it); without it the FMU has no darwin64 binary.
 //! * `--out`: the `.fmu`; default `<target>/fmu/StickSlipManipulator.fmu`,
 //!   `<target>` being the directory above this executable's.
 //!
 //! The FMU holds `modelDescription.xml` (written for the model by the same
 //! code as `build.rs` uses), `binaries/linux64/StickSlipManipulator.so`,
-//! `binaries/win64/StickSlipManipulator.dll` when given, and
+//! `binaries/win64/StickSlipManipulator.dll` and
+//! `binaries/darwin64/StickSlipManipulator.dylib` when given, and
 //! `resources/model.toml` (the model file as given, which the FMU reads at
 //! fmi2Instantiate and whose text the GUID is derived from).
 
@@ -37,6 +41,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut model_path: Option<PathBuf> = None;
     let mut lib = exe_dir.join("libstick_slip_manipulator.so");
     let mut win64_lib: Option<PathBuf> = None;
+    let mut darwin64_lib: Option<PathBuf> = None;
     let mut out = exe_dir.parent().unwrap_or(&exe_dir).join("fmu").join(format!("{MODEL_IDENTIFIER}.fmu"));
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -45,14 +50,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--model" => model_path = Some(value()?),
             "--lib" => lib = value()?,
             "--win64-lib" => win64_lib = Some(value()?),
+            "--darwin64-lib" => darwin64_lib = Some(value()?),
             "--out" => out = value()?,
             "-h" | "--help" => {
-                println!("usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE]");
+                println!("usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--darwin64-lib FILE] [--out FILE]");
                 return Ok(());
             }
             _ => {
                 return Err(format!(
-                    "unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--out FILE])"
+                    "unknown argument {a} (usage: package_fmu [--model FILE] [--lib FILE] [--win64-lib FILE] [--darwin64-lib FILE] [--out FILE])"
                 )
                 .into())
             }
@@ -67,6 +73,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut binaries = vec![(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), read_library(&lib)?)];
     if let Some(dll) = &win64_lib {
         binaries.push((format!("binaries/win64/{MODEL_IDENTIFIER}.dll"), read_library(dll)?));
+    }
+    if let Some(dylib) = &darwin64_lib {
+        binaries.push((format!("binaries/darwin64/{MODEL_IDENTIFIER}.dylib"), read_library(dylib)?));
     }
     let xml = model_description_xml(&model, &text);
 

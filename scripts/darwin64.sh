@@ -1,0 +1,121 @@
+# shellcheck shell=bash
+# scripts/darwin64.sh -- the darwin64 cross toolchain. SOURCED (after
+# scripts/env.sh with STICKSLIP_DARWIN64=1, which installs what it needs) by
+# scripts/build_fmu.sh when `--platforms` names darwin64.
+#
+# The FMU's darwin64 binary is one universal (fat) Mach-O dylib with an x86_64
+# and an arm64 slice. Each slice is built like the win64 DLL: Debian's Rust
+# (`rustc-web`, `cargo-web`) compiles std from `rust-web-src` (-Zbuild-std,
+# RUSTC_BOOTSTRAP=1), here for x86_64-apple-darwin and aarch64-apple-darwin.
+# No Apple SDK is needed:
+#   * C compiler (fmi-sys's logger.c): `zig cc` from the PyPI package `ziglang`
+#     (pinned in scripts/darwin64-requirements.txt, in a venv of its own,
+#     $DARWIN64_ZIG_VENV), which carries
+#     the macOS headers (scripts/darwin-cc.sh);
+#   * linker: LLVM's ld64.lld (the rustup toolchain's rust-lld, else Debian's
+#     ld64.lld) against the libSystem stubs (libSystem.tbd) of the same zig
+#     package (scripts/darwin-link.sh, which also says why not zig's linker);
+#   * universal file: `llvm-lipo` of Debian's LLVM (package llvm-14).
+# Minimum macOS: 10.13 for x86_64, 11.0 for arm64 (the first macOS on Apple
+# silicon), as MACOSX_DEPLOYMENT_TARGET of each build.
+# Everything goes to $DARWIN64_TARGET_DIR (<target>/darwin64).
+#
+#   darwin64_cargo TRIPLE SUBCOMMAND ARGS...  /usr/bin/cargo for one Apple target
+#                                             (niced), in a subshell
+#   darwin64_build                            both slices, merged into
+#                                             $DARWIN64_DYLIB
+
+DARWIN64_TARGET_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/darwin64"
+DARWIN64_ZIG_VENV="${STICKSLIP_ZIG_VENV:-$DARWIN64_TARGET_DIR/zig-venv}"
+DARWIN64_DYLIB="$DARWIN64_TARGET_DIR/StickSlipManipulator.dylib"
+DARWIN64_INSTALL_NAME=@rpath/StickSlipManipulator.dylib
+# The only library the dylib may load: every macOS has it (in the dyld shared cache).
+DARWIN64_SYSTEM_LIBS=/usr/lib/libSystem.B.dylib
+declare -A DARWIN64_MIN_MACOS=([x86_64-apple-darwin]=10.13 [aarch64-apple-darwin]=11.0)
+
+# An LLVM tool of Debian's LLVM: NAME, else NAME-14.
+_darwin64_llvm() {
+    local t
+    for t in "$1" "$1-14" "/usr/lib/llvm-14/bin/$1"; do
+        if command -v "$t" >/dev/null 2>&1; then command -v "$t"; return 0; fi
+    done
+    echo "darwin64.sh: $1 not found (Debian package llvm-14; scripts/env.sh installs it)" >&2
+    return 1
+}
+
+# The Mach-O linker: the rustup toolchain's rust-lld, else Debian's ld64.lld.
+_darwin64_lld() {
+    local sysroot host lld t
+    if command -v rustc >/dev/null 2>&1 && [ "$(command -v rustc)" != /usr/bin/rustc ]; then
+        sysroot=$(rustc --print sysroot) && host=$(rustc -vV | sed -n 's/^host: //p')
+        lld="$sysroot/lib/rustlib/$host/bin/rust-lld"
+        if [ -x "$lld" ]; then echo "$lld -flavor darwin"; return 0; fi
+    fi
+    for t in ld64.lld ld64.lld-19 ld64.lld-16 ld64.lld-15; do
+        if command -v "$t" >/dev/null 2>&1; then command -v "$t"; return 0; fi
+    done
+    echo "darwin64.sh: no ld64.lld (rustup's rust-lld or Debian's lld-19)" >&2
+    return 1
+}
+
+# The libSystem stubs for the linker: zig's libSystem.tbd, whose targets
+# name arm64 code as `arm64e` and `arm64e.x1` (zig's own linker accepts arm64
+# for those), rewritten for ld64.lld to `arm64` (the same symbols: arm64
+# processes on Apple silicon bind to the very same libSystem). Into
+# $DARWIN64_TARGET_DIR/sdk, with zig's SDKSettings.json (the SDK version).
+_darwin64_sdk() {
+    local from="$1" to="$DARWIN64_TARGET_DIR/sdk"
+    [ "$to/libSystem.tbd" -nt "$from/libSystem.tbd" ] && return 0
+    mkdir -p "$to" && cp "$from/SDKSettings.json" "$to/" &&
+    "$DARWIN64_ZIG_VENV/bin/python" - "$from/libSystem.tbd" "$to/libSystem.tbd" <<'PY'
+import re, sys
+text = open(sys.argv[1]).read()
+text = re.sub(r",\s*arm64e\.x1-[a-z]+", "", text)
+text = re.sub(r"arm64e\.x1-[a-z]+,\s*", "", text)
+assert "arm64e.x1" not in text, "an arm64e.x1 target left"
+text = text.replace("arm64e-", "arm64-")
+open(sys.argv[2], "w").write(text)
+PY
+}
+
+_darwin64_env() {
+    local triple="$1" var include zigdir
+    zigdir=$("$DARWIN64_ZIG_VENV/bin/python" -c 'import os, ziglang; print(os.path.dirname(ziglang.__file__))' 2>/dev/null) || {
+        echo "darwin64.sh: no ziglang in $DARWIN64_ZIG_VENV (scripts/env.sh installs it with STICKSLIP_DARWIN64=1)" >&2
+        return 1
+    }
+    var=$(echo "$triple" | tr 'a-z-' 'A-Z_')
+    export RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1
+    export MACOSX_DEPLOYMENT_TARGET="${DARWIN64_MIN_MACOS[$triple]}"
+    export DARWIN64_ZIG="$zigdir/zig" DARWIN64_SDK="$DARWIN64_TARGET_DIR/sdk" DARWIN64_INSTALL_NAME
+    _darwin64_sdk "$zigdir/lib/libc/darwin" || return 1
+    # rustc asks xcrun for the SDK unless SDKROOT names one (it only warns).
+    export SDKROOT="$DARWIN64_SDK"
+    DARWIN64_LLD=$(_darwin64_lld) || return 1
+    export DARWIN64_LLD
+    export "CC_${triple//-/_}=$STICKSLIP_ROOT/scripts/darwin-cc.sh"
+    export "CARGO_TARGET_${var}_LINKER=$STICKSLIP_ROOT/scripts/darwin-link.sh"
+    # bindgen (fmi-sys) parses the FMI headers for the Apple target with
+    # libclang: clang's builtin headers (stddef.h) and zig's macOS headers.
+    include=$(ls -d "${LIBCLANG_PATH:-/usr/lib/llvm-14/lib}"/clang/*/include 2>/dev/null | sort -V | tail -n1)
+    export "BINDGEN_EXTRA_CLANG_ARGS_${triple//-/_}=-I$include -isystem $zigdir/lib/libc/include/any-darwin-any"
+}
+
+darwin64_cargo() (
+    _darwin64_env "$1" || exit 1
+    nice /usr/bin/cargo "$2" -Zbuild-std=std,panic_unwind --target "$1" --target-dir "$DARWIN64_TARGET_DIR" "${@:3}"
+)
+
+# Both slices (release), merged into the universal $DARWIN64_DYLIB. The
+# linker output is already stripped and (arm64) signed; lipo copies the
+# slices unchanged, so the signature stays valid.
+darwin64_build() {
+    local triple lipo slices=()
+    lipo=$(_darwin64_llvm llvm-lipo) || return 1
+    for triple in x86_64-apple-darwin aarch64-apple-darwin; do
+        darwin64_cargo "$triple" build --release --lib || return 1
+        slices+=("$DARWIN64_TARGET_DIR/$triple/release/libstick_slip_manipulator.dylib")
+    done
+    rm -f "$DARWIN64_DYLIB"
+    "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB"
+}
