@@ -1,4 +1,4 @@
-"""Drive inputs of the FMU: the reference motion, or a motion read from a CSV file.
+"""Drive inputs of the FMU: the reference motion, a motion file, or a sweep's CSV table.
 
 A motion is a function ``inputs(t, step)`` returning (q*, q*', q*'') lists, one value per
 joint, set at the communication point t before the step of length ``step`` from t.
@@ -6,13 +6,25 @@ joint, set at the communication point t before the step of length ``step`` from 
 The reference motion (shared/reference-manipulator.md) is the cycloidal point-to-point
 profile of every joint over T = 1.5 s, evaluated with the same floating-point operations as
 ``src/motion.rs``, so the inputs are bit-identical to those of the Rust engine.
+
+A *motion file* (TOML, docs/motion.md; :func:`load_motion`) gives the motion of any chain:
+per joint a cycloid (or a sequence of them) or a constant, or a CSV of t and q*_1..q*_n whose
+rates and accelerations come from a cubic spline through the samples (:class:`SplineMotion`).
+:func:`fmu_joints` reads the number of joints (and their URDF names, when the FMU gives them)
+from the FMU's modelDescription; the file is checked against it.
+
+:class:`TableMotion` is the older CSV table of a sweep SPEC (``motion = "file.csv"``: linear
+interpolation, optional rate columns), kept as it was so that existing sweeps reproduce.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import math
 import re
+import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -134,3 +146,361 @@ class TableMotion:
                 qd.append((self._at(qs, t + step) - q[-1]) / step if step > 0 else 0.0)
             qdd.append(self._at(f"qdd_star[{i}]", t) if f"qdd_star[{i}]" in self.columns else 0.0)
         return q, qd, qdd
+
+
+# ---------------------------------------------------------------------------
+# motion files (docs/motion.md)
+
+MOTION_KEYS = ("description", "joints", "end", "settle", "joint", "csv", "boundary")
+JOINT_KEYS = ("index", "name", "cycloid", "hold")
+CYCLOID_KEYS = ("q0", "q1", "t0", "t1")
+BOUNDARIES = {"not-a-knot": "not-a-knot", "rest": "clamped"}  # `boundary` -> scipy's bc_type
+SETTLE = 0.5  # s, default time simulated after the motion comes to rest (the reference: 1.5 s + 0.5 s)
+
+
+def fmu_joints(md) -> tuple:
+    """(n, names) of an FMU: n the number of inputs ``q_star[i]``, names {i: URDF joint name}
+    for the joints whose ``q_star[i]`` description names one in backquotes, as in
+    "... of joint 2 (`iiwa_joint_2`) ..." (empty for the reference arm's FMU)."""
+    n, names = 0, {}
+    for v in md.modelVariables:
+        m = re.fullmatch(r"q_star\[(\d+)\]", v.name)
+        if v.causality != "input" or not m:
+            continue
+        n += 1
+        found = re.search(r"\bjoint\s+(\d+)\s*\(([^)]*)\)", v.description or "")
+        if found and int(found.group(1)) == int(m.group(1)):
+            name = re.search(r"`([^`]+)`", found.group(2))
+            if name:
+                names[int(m.group(1))] = name.group(1)
+    return n, names
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+@dataclass(frozen=True)
+class Cycloid:
+    """q0 -> q1 over [t0, t1] on the profile of :func:`cycloidal`; q0 before, q1 after."""
+
+    q0: float
+    q1: float
+    t0: float
+    t1: float
+
+    def __call__(self, t: float):
+        # t - 0.0 and t1 - 0.0 are exact: with t0 = 0 the values are bit-identical to cycloidal().
+        return cycloidal(self.q0, self.q1, t - self.t0, self.t1 - self.t0)
+
+
+class CycloidMotion:
+    """Per joint a sequence of :class:`Cycloid` segments (empty: the joint holds ``hold[i]``)."""
+
+    def __init__(self, segments: list, hold: list, source: str, stop_time: float | None = None,
+                 settle: float = SETTLE):
+        self.segments = segments  # per joint: a list of Cycloid, in time order
+        self.hold = hold  # per joint: the value held when it has no segment
+        self.joints = len(segments)
+        self.source = source
+        self.end_time = max((s[-1].t1 for s in segments if s), default=0.0)  # at rest from here on
+        self.stop_time = self.end_time + settle if stop_time is None else stop_time
+
+    def __call__(self, t: float, step: float = 0.0):
+        q, qd, qdd = [], [], []
+        for segs, hold in zip(self.segments, self.hold):
+            if not segs:
+                a, b, c = hold, 0.0, 0.0
+            else:
+                seg = segs[0]
+                for s in segs[1:]:
+                    if t >= s.t0:
+                        seg = s
+                a, b, c = seg(t)
+            q.append(a)
+            qd.append(b)
+            qdd.append(c)
+        return q, qd, qdd
+
+    def describe(self) -> str:
+        moving = [i + 1 for i, s in enumerate(self.segments) if s]
+        return (f"{self.source}: {self.joints} joints, cycloids on joint(s) {moving or 'none'}, "
+                f"at rest from t = {self.end_time:g} s")
+
+
+class SplineMotion:
+    """q*_i sampled at times t_0 < ... < t_m (a CSV), joined by a C2 cubic spline per joint.
+
+    q*' and q*'' are the spline's first and second derivatives, evaluated exactly (from its
+    piecewise-polynomial coefficients), so the three inputs set at a communication point are
+    the value and derivatives of one twice continuously differentiable function, and the
+    FMU's Taylor polynomial q* + q*' t + q*'' t^2/2 across the step is that function's
+    expansion (deviating from the spline by q*''' h^3/6 at the end of a step of h).
+
+    ``boundary``: "not-a-knot" (the default; the third derivative is continuous at the
+    second and last-but-one sample, so the spline reproduces every polynomial of degree
+    <= 3 exactly, on any grid) or "rest" (clamped: q*' = 0 at the first and last sample, for
+    rest-to-rest motions). Before the first sample q* holds its first value, after the last
+    its last value, with zero rates.
+    """
+
+    def __init__(self, time, q, source: str, boundary: str = "not-a-knot", stop_time: float | None = None,
+                 settle: float = SETTLE):
+        from scipy.interpolate import CubicSpline
+
+        self.time = np.ascontiguousarray(time, dtype=np.float64)
+        q = np.asarray(q, dtype=np.float64)  # (samples, joints)
+        self.joints = q.shape[1]
+        self.source = source
+        self.boundary = boundary
+        spline = CubicSpline(self.time, q, axis=0, bc_type=BOUNDARIES[boundary])
+        self.coefficients = np.ascontiguousarray(spline.c)  # (4, samples - 1, joints), highest power first
+        self.first, self.last = q[0].copy(), q[-1].copy()
+        self.end_time = float(self.time[-1])
+        self.stop_time = self.end_time + settle if stop_time is None else stop_time
+
+    def evaluate(self, t: float):
+        """(q, q', q'') as arrays over the joints at time t."""
+        zero = np.zeros(self.joints)
+        if t < self.time[0]:
+            return self.first.copy(), zero, zero.copy()
+        if t > self.time[-1]:
+            return self.last.copy(), zero, zero.copy()
+        k = min(int(np.searchsorted(self.time, t, side="right")) - 1, len(self.time) - 2)
+        c3, c2, c1, c0 = self.coefficients[:, k, :]
+        x = t - self.time[k]
+        return ((c3 * x + c2) * x + c1) * x + c0, (3.0 * c3 * x + 2.0 * c2) * x + c1, 6.0 * c3 * x + 2.0 * c2
+
+    def __call__(self, t: float, step: float = 0.0):
+        q, qd, qdd = self.evaluate(t)
+        return q.tolist(), qd.tolist(), qdd.tolist()
+
+    def describe(self) -> str:
+        return (f"{self.source}: {self.joints} joints, {len(self.time)} samples over "
+                f"[{self.time[0]:g}, {self.time[-1]:g}] s, cubic spline ({self.boundary} ends)")
+
+
+def _number(value, what: str, where: str) -> float:
+    if not _finite(value):
+        raise MotionError(f"{where}: {what} = {value!r}: must be a finite number")
+    return float(value)
+
+
+def _cycloid(entry, what: str, where: str) -> Cycloid:
+    if not isinstance(entry, dict):
+        raise MotionError(f"{where}: {what} = {entry!r}: must be a table {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}")
+    unknown = [k for k in entry if k not in CYCLOID_KEYS]
+    if unknown:
+        raise MotionError(f"{where}: {what}: unknown key(s) {unknown}; a cycloid has {list(CYCLOID_KEYS)}")
+    missing = [k for k in CYCLOID_KEYS if k not in entry]
+    if missing:
+        raise MotionError(f"{where}: {what}: missing {missing}; a cycloid is {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}")
+    c = Cycloid(*(_number(entry[k], f"{what}.{k}", where) for k in CYCLOID_KEYS))
+    if not c.t1 > c.t0:
+        raise MotionError(f"{where}: {what}: t1 = {c.t1:g} s must be later than t0 = {c.t0:g} s")
+    if c.t0 < 0:
+        raise MotionError(f"{where}: {what}: t0 = {c.t0:g} s is before the simulation starts (t = 0)")
+    return c
+
+
+def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> int:
+    what = f"[[joint]] #{k}"
+    if "index" not in entry and "name" not in entry:
+        raise MotionError(f"{where}: {what}: give its `index` (1..{joints}, chain order)"
+                          + (" or its `name`" if names else ""))
+    index = None
+    if "index" in entry:
+        index = entry["index"]
+        if not isinstance(index, int) or isinstance(index, bool):
+            raise MotionError(f"{where}: {what}: index = {index!r}: must be a whole number 1..{joints}")
+        if not 1 <= index <= joints:
+            raise MotionError(f"{where}: {what}: unknown joint index {index}: the FMU has {joints} joints "
+                              f"(index 1..{joints}, chain order)")
+    if "name" in entry:
+        name = entry["name"]
+        by_name = {v: i for i, v in names.items()}
+        if not names:
+            raise MotionError(f"{where}: {what}: name = {name!r}: the FMU names no joints; give `index` "
+                              f"(1..{joints}, chain order)")
+        if name not in by_name:
+            raise MotionError(f"{where}: {what}: unknown joint name {name!r}; the FMU's joints are "
+                              + ", ".join(f"{i} {names[i]!r}" for i in sorted(names)))
+        if index is not None and by_name[name] != index:
+            raise MotionError(f"{where}: {what}: index = {index} but name = {name!r} is joint {by_name[name]}")
+        index = by_name[name]
+    return index
+
+
+def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle) -> CycloidMotion:
+    entries = doc.get("joint", [])
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise MotionError(f"{where}: `joint` must be an array of tables ([[joint]] ... )")
+    segments, hold, seen = [[] for _ in range(joints)], [0.0] * joints, {}
+    for k, entry in enumerate(entries, 1):
+        unknown = [key for key in entry if key not in JOINT_KEYS]
+        if unknown:
+            raise MotionError(f"{where}: [[joint]] #{k}: unknown key(s) {unknown}; a joint has {list(JOINT_KEYS)}")
+        i = _joint_index(entry, k, joints, names, where)
+        what = f"joint {i}" + (f" ({names[i]!r})" if i in names else "")
+        if i in seen:
+            raise MotionError(f"{where}: {what} is given twice ([[joint]] #{seen[i]} and #{k})")
+        seen[i] = k
+        if "cycloid" in entry and "hold" in entry:
+            raise MotionError(f"{where}: {what}: give either `cycloid` or `hold` (a cycloid starts at its q0 "
+                              f"and holds it until t0)")
+        if "hold" in entry:
+            hold[i - 1] = _number(entry["hold"], f"{what}: hold", where)
+        if "cycloid" in entry:
+            raw = entry["cycloid"]
+            raw = raw if isinstance(raw, list) else [raw]
+            if not raw:
+                raise MotionError(f"{where}: {what}: cycloid = []: give at least one segment")
+            segs = [_cycloid(c, f"{what}: cycloid" + (f" #{m}" if len(raw) > 1 else ""), where)
+                    for m, c in enumerate(raw, 1)]
+            for m in range(1, len(segs)):
+                a, b = segs[m - 1], segs[m]
+                if b.t0 < a.t1:
+                    raise MotionError(f"{where}: {what}: cycloid #{m + 1} starts at t0 = {b.t0:g} s, before "
+                                      f"cycloid #{m} ends (t1 = {a.t1:g} s); segments must follow in time")
+                if b.q0 != a.q1:
+                    raise MotionError(f"{where}: {what}: cycloid #{m + 1} starts at q0 = {b.q0!r} but cycloid "
+                                      f"#{m} ends at q1 = {a.q1!r}; q* would jump")
+            segments[i - 1] = segs
+            hold[i - 1] = segs[0].q0
+    return CycloidMotion(segments, hold, where, stop, settle)
+
+
+def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop, settle) -> SplineMotion:
+    try:
+        with open(path, newline="") as f:
+            rows = [(n, r) for n, r in enumerate(csv.reader(f), 1)
+                    if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    except OSError as e:
+        raise MotionError(f"{where}: csv {str(path)!r}: {e.strerror}") from None
+    except (UnicodeDecodeError, csv.Error) as e:
+        raise MotionError(f"{where}: csv {str(path)!r}: not a CSV text file ({e})") from None
+    src = f"{where}: csv {path.name!r}"
+    expected = ["t"] + [f"q_star[{i}]" for i in range(1, joints + 1)]
+    if not rows:
+        raise MotionError(f"{src}: empty; expected a header row {', '.join(expected)} and the samples")
+    header = [h.strip() for h in rows[0][1]]
+    if len(header) != joints + 1:
+        raise MotionError(f"{src}: {len(header)} columns, expected {joints + 1} (t and one per joint of the "
+                          f"FMU's {joints}): {', '.join(expected)}")
+    if header[0] not in ("t", "time"):
+        raise MotionError(f"{src}: the first column must be the time `t` (s); the header is {header}"
+                          + (" (a header row is required)" if _is_number(header[0]) else ""))
+    column_of = {}  # joint index -> column
+    for col, h in enumerate(header[1:], 1):
+        m = re.fullmatch(r"q_star\[(\d+)\]", h)
+        i = int(m.group(1)) if m else {v: k for k, v in names.items()}.get(h)
+        if i is None or not 1 <= i <= joints:
+            raise MotionError(f"{src}: unknown column {h!r}; the columns are t, then q_star[1]..q_star[{joints}]"
+                              + (f" or the joint names {[names[k] for k in sorted(names)]}" if names else ""))
+        if i in column_of:
+            raise MotionError(f"{src}: joint {i} has two columns ({header[column_of[i]]!r} and {h!r})")
+        column_of[i] = col
+    data = []
+    for line, r in rows[1:]:
+        if len(r) != joints + 1:
+            raise MotionError(f"{src}, line {line}: {len(r)} values, expected {joints + 1} (t and {joints} joints)")
+        try:
+            values = [float(x) for x in r]
+        except ValueError:
+            raise MotionError(f"{src}, line {line}: not a number in {r}") from None
+        bad = [header[j] for j, x in enumerate(values) if not math.isfinite(x)]
+        if bad:
+            raise MotionError(f"{src}, line {line}: {bad[0]} = {r[header.index(bad[0])].strip()}: "
+                              f"must be a finite number")
+        data.append((line, values))
+    if len(data) < 2:
+        raise MotionError(f"{src}: {len(data)} sample(s); a motion needs at least 2")
+    for (l0, a), (l1, b) in zip(data, data[1:]):
+        if not b[0] > a[0]:
+            raise MotionError(f"{src}, line {l1}: t = {b[0]!r} s is not later than t = {a[0]!r} s on line {l0}; "
+                              f"the time column must increase strictly")
+    table = np.array([v for _, v in data], dtype=np.float64)
+    q = table[:, [column_of[i] for i in range(1, joints + 1)]]
+    return SplineMotion(table[:, 0], q, src, boundary, stop, settle)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def load_motion(path, joints: int, names: dict | None = None):
+    """The motion of a motion file (TOML, docs/motion.md) for a chain of ``joints`` joints
+    whose URDF names are ``names`` ({index: name}, optional): a :class:`CycloidMotion` or a
+    :class:`SplineMotion`, callable as ``motion(t, step)``, with ``joints``, ``end_time``
+    (from then on every joint is at rest), ``stop_time`` (the file's `end`, else end_time +
+    `settle`) and ``describe()``. Raises :class:`MotionError` naming the file and the problem."""
+    path = Path(path)
+    names = names or {}
+    where = f"motion file {path}"
+    if path.suffix.lower() == ".csv":
+        raise MotionError(f"{where}: a motion file is TOML; for a CSV of t, q_star[1..{joints}] write a file "
+                          f"motion.toml with the line  csv = \"{path.name}\"  next to it (docs/motion.md)")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MotionError(f"{where}: no such file") from None
+    except OSError as e:
+        raise MotionError(f"{where}: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise MotionError(f"{where}: not a UTF-8 text file ({e})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise MotionError(f"{where}: not valid TOML: {e}") from None
+    unknown = [k for k in doc if k not in MOTION_KEYS]
+    if unknown:
+        raise MotionError(f"{where}: unknown key(s) {unknown}; a motion file has {list(MOTION_KEYS)}")
+    if "joints" in doc and doc["joints"] != joints:
+        raise MotionError(f"{where}: written for joints = {doc['joints']!r}, but the FMU has {joints} joints")
+    stop = None
+    if "end" in doc:
+        stop = _number(doc["end"], "end", where)
+        if stop <= 0:
+            raise MotionError(f"{where}: end = {stop:g} s: must be positive")
+    settle = _number(doc.get("settle", SETTLE), "settle", where)
+    if settle < 0:
+        raise MotionError(f"{where}: settle = {settle:g} s: must be >= 0")
+    if "csv" in doc:
+        if "joint" in doc:
+            raise MotionError(f"{where}: give either `csv` or [[joint]] entries, not both")
+        if not isinstance(doc["csv"], str) or not doc["csv"]:
+            raise MotionError(f"{where}: csv = {doc['csv']!r}: must be the path of a CSV file")
+        boundary = doc.get("boundary", "not-a-knot")
+        if boundary not in BOUNDARIES:
+            raise MotionError(f"{where}: boundary = {boundary!r}: must be one of {list(BOUNDARIES)}")
+        return _csv_motion(path.parent / doc["csv"], joints, names, where, boundary, stop, settle)
+    if "boundary" in doc:
+        raise MotionError(f"{where}: `boundary` applies to a `csv` motion only")
+    if "joint" not in doc:
+        raise MotionError(f"{where}: no motion: give [[joint]] entries (cycloid or hold) or csv = \"file.csv\"")
+    return _joint_motion(doc, joints, names, where, stop, settle)
+
+
+def load_motion_for(path, md):
+    """:func:`load_motion` checked against the FMU whose modelDescription (fmpy) is ``md``."""
+    joints, names = fmu_joints(md)
+    return load_motion(path, joints, names)
+
+
+def motion_identity(path) -> dict:
+    """What identifies a motion file's content: the sha256 of the file, and of the CSV it names.
+    A sweep SPEC's older CSV table (``motion = "x.csv"``) keeps its identity {"csv_sha256": ...}."""
+    path = Path(path)
+    data = path.read_bytes()
+    if path.suffix.lower() == ".csv":
+        return {"csv_sha256": hashlib.sha256(data).hexdigest()}
+    out = {"motion_sha256": hashlib.sha256(data).hexdigest()}
+    try:
+        name = tomllib.loads(data.decode("utf-8")).get("csv")
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        name = None
+    if isinstance(name, str) and (path.parent / name).is_file():
+        out["csv_sha256"] = hashlib.sha256((path.parent / name).read_bytes()).hexdigest()
+    return out

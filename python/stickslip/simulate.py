@@ -2,14 +2,18 @@
 
 * :func:`run`: instantiate the FMU with fmpy's FMU2Slave, set parameters,
   step it over a motion, by default the reference motion of
-  :mod:`stickslip.motion` (inputs q*, q*', q*'' set at every
-  communication point) and collect every output by name;
+  :mod:`stickslip.motion`, or a motion file (docs/motion.md; inputs q*, q*', q*''
+  set at every communication point) and collect every output by name;
 * :func:`write_csv`: the outputs as CSV, one column per FMU variable.
 
 Command line (the main job uses it)::
 
-    stickslip simulate [--fmu FILE] [--out results/reference.csv]
+    stickslip simulate [--fmu FILE] [--out results/reference.csv] [--motion MOTION.toml]
         [--end 2.0] [--interval 1e-3] [--set NAME=VALUE ...]
+
+``--motion`` drives the FMU with a motion file (docs/motion.md) instead of the reference
+arm's cycloids; its number of joints is checked against the FMU's. Without ``--end`` such a
+run lasts the file's ``end``, else until the motion is at rest plus its ``settle`` (0.5 s).
         [--check-convergence [--convergence-threshold 0.003]]
 
 ``--check-convergence`` runs the motion a second time with a tenfold tighter
@@ -31,23 +35,29 @@ from pathlib import Path
 
 from .convergence import DEFAULT_THRESHOLD
 from .fmu import DEFAULT_FMU, ROOT, communication_points, initialize, input_references
-from .motion import RUN_TIME, reference_inputs
+from .motion import RUN_TIME, MotionError, load_motion_for, reference_inputs
 
 
-def run(fmu=DEFAULT_FMU, end: float = RUN_TIME, interval: float = 1e-3, parameters: dict | None = None,
-        inputs=reference_inputs, progress: str | None = None) -> dict:
+def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, parameters: dict | None = None,
+        inputs=reference_inputs, progress: str | None = None, motion=None) -> dict:
     """Simulates ``end`` seconds in communication steps of ``interval``.
 
     ``parameters`` maps FMU variable names (``mu_k[3]``, ``h_max``, ...) to
     values set before initialization; ``inputs(t, interval)`` returns (q*, q*', q*'')
-    per joint at t (:mod:`stickslip.motion`). Returns a dict: ``time`` and every output by name, as
-    lists (Booleans as 0/1).
+    per joint at t (:mod:`stickslip.motion`). ``motion``: the path of a motion file
+    (docs/motion.md), checked against this FMU's joints, used instead of ``inputs``; with it
+    ``end = None`` means the file's stop time. Returns a dict: ``time`` and every output by
+    name, as lists (Booleans as 0/1).
     """
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
     fmu = str(fmu)
     md = read_model_description(fmu)
+    if motion is not None:
+        inputs = load_motion_for(motion, md)
+    if end is None:
+        end = getattr(inputs, "stop_time", RUN_TIME)
     in_vrs = input_references(md)
     outputs = [v for v in md.modelVariables if v.causality == "output"]
     real_out = [v for v in outputs if v.type == "Real"]
@@ -99,7 +109,11 @@ def write_csv(result: dict, path) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
     p.add_argument("--out", default=str(ROOT / "results" / "reference.csv"))
-    p.add_argument("--end", type=float, default=RUN_TIME)
+    p.add_argument("--motion", metavar="MOTION.toml", help="drive the FMU with this motion file (docs/motion.md: "
+                   "per joint a cycloid or a hold, or a CSV of t, q_star[1..n]); default: the reference arm's cycloids")
+    p.add_argument("--end", type=float, default=None,
+                   help=f"stop time, s (default {RUN_TIME:g}; with --motion the file's `end`, else when it is at "
+                        f"rest plus its `settle`)")
     p.add_argument("--interval", type=float, default=1e-3)
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
     p.add_argument("--check-convergence", action="store_true",
@@ -110,19 +124,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(a: argparse.Namespace) -> int:
-    """``stickslip simulate``: the reference motion through the FMU, written as CSV."""
+    """``stickslip simulate``: the reference motion (or ``--motion``) through the FMU, written as CSV."""
     parameters = {}
     for item in a.set:
         name, _, value = item.partition("=")
         parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
+    inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
+    if a.motion is not None:
+        try:
+            inputs = motion_of(a.motion, a.fmu)
+        except MotionError as e:
+            print(f"stickslip simulate: {e}", file=sys.stderr)
+            return 2
+        label, end = f"motion {a.motion}", inputs.stop_time if a.end is None else a.end
+        print(f"motion: {inputs.describe()}; simulating {end:g} s")
     wall = time.perf_counter()
-    result = run(a.fmu, a.end, a.interval, parameters, progress="reference motion")
+    result = run(a.fmu, end, a.interval, parameters, inputs, progress=label)
     simulated = time.perf_counter()
     write_csv(result, a.out)
-    print(f"simulated {a.end} s through {a.fmu} in {simulated - wall:.2f} s wall "
+    print(f"simulated {end} s through {a.fmu} in {simulated - wall:.2f} s wall "
           f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s")
     if a.check_convergence:
-        check = convergence_of(result, a.fmu, a.end, a.interval, parameters, a.convergence_threshold)
+        check = convergence_of(result, a.fmu, end, a.interval, parameters, a.convergence_threshold, inputs)
         path = Path(a.out).with_suffix(".convergence.json")
         write_convergence(check, path)
         print(check.report())
@@ -132,6 +155,18 @@ def main(a: argparse.Namespace) -> int:
         elif check.warning():
             print(check.warning(), file=sys.stderr, flush=True)
     return 0
+
+
+def motion_of(path, fmu):
+    """The motion file ``path`` checked against the FMU file ``fmu`` (:func:`stickslip.motion.load_motion`);
+    raises :class:`stickslip.motion.MotionError`, also for an unreadable FMU."""
+    from fmpy import read_model_description
+
+    try:
+        md = read_model_description(str(fmu))
+    except Exception as e:  # noqa: BLE001 -- any unreadable FMU
+        raise MotionError(f"fmu {fmu}: not a readable FMU ({e})") from None
+    return load_motion_for(path, md)
 
 
 def convergence_of(result: dict, fmu, end: float, interval: float, parameters: dict,
