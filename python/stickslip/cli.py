@@ -21,6 +21,8 @@ def _sweep_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--retries", type=int, default=2, help="runs of a task again after its worker died (default 2)")
     p.add_argument("--samples", type=int, metavar="N", help="override [sample] n (the first N draws of the SPEC)")
     p.add_argument("--stop-time", type=float, metavar="SECONDS", help="override stop_time")
+    p.add_argument("--motion", metavar="MOTION.toml", help="override the SPEC's motion with this motion file "
+                   "(docs/motion.md), checked against the FMU's joints")
     c = p.add_argument_group("convergence check (docs/convergence.md)")
     c.add_argument("--check-convergence", action="store_true",
                    help="run each variant (or --convergence-fraction of them) again with a tenfold tighter "
@@ -54,7 +56,7 @@ def sweep_main(a: argparse.Namespace) -> int:
         check = None
         if a.check_convergence:
             check = Check(1.0 if a.convergence_fraction is None else a.convergence_fraction)
-        spec = spec_module.load(a.spec, {"stop_time": a.stop_time, "n": a.samples})
+        spec = spec_module.load(a.spec, {"stop_time": a.stop_time, "n": a.samples, "motion": a.motion})
         stats = run_sweep(spec, a.out, a.scheduler, a.workers, a.timeout, a.retries, check=check)
     except (spec_module.SpecError, SweepError) as e:
         print(f"stickslip sweep: {e}", file=sys.stderr)
@@ -92,7 +94,7 @@ def main(argv=None) -> int:
     sub = p.add_subparsers(dest="command", required=True)
     from . import bench, simulate, study
 
-    s = sub.add_parser("simulate", help="the reference motion through the FMU, as CSV")
+    s = sub.add_parser("simulate", help="the reference motion (or a motion file) through the FMU, as CSV")
     simulate.add_arguments(s)
     s.set_defaults(main=simulate.main)
     s = sub.add_parser("study", help="the source study's five cases through the FMU")

@@ -4,7 +4,8 @@
 
     stop_time = 2.0              # s
     communication_step = 1e-3    # s
-    motion = "reference"         # or a CSV file: time, q_star[i] (qd_star[i], qdd_star[i] optional)
+    motion = "reference"         # or a motion file (TOML, docs/motion.md), or a CSV table:
+                                 #   time, q_star[i] (qd_star[i], qdd_star[i] optional)
     fmu = "target/fmu/StickSlipManipulator.fmu"   # optional, this is the default
     [grid]                       # full factorial over every listed value
     "mu_k[3]" = [0.1, 0.15, 0.2]
@@ -40,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from .fmu import DEFAULT_FMU
+from .motion import motion_identity
 
 DISTRIBUTIONS = {  # name -> (what the two numbers are, check, message when the check fails)
     "uniform": ("[low, high]", lambda a, b: a < b, "needs low < high"),
@@ -80,7 +82,7 @@ class Spec:
 
     stop_time: float
     communication_step: float
-    motion: str  # "reference" or the path of a CSV file
+    motion: str  # "reference", the path of a motion file (TOML) or of a CSV table
     fmu: Path
     grid: dict = field(default_factory=dict)  # name -> tuple of values
     sample: dict = field(default_factory=dict)  # name -> Distribution
@@ -112,8 +114,7 @@ class Spec:
     def canonical(self) -> dict:
         """What identifies the sweep's results: everything but where the FMU file lies (its
         content is identified by its hash, see :mod:`stickslip.sweep`); a motion file by its content."""
-        motion = self.motion if self.motion == "reference" else {
-            "csv_sha256": hashlib.sha256(Path(self.motion).read_bytes()).hexdigest()}
+        motion = self.motion if self.motion == "reference" else motion_identity(self.motion)
         return {"stop_time": self.stop_time, "communication_step": self.communication_step, "motion": motion,
                 "grid": {k: list(v) for k, v in self.grid.items()},
                 "sample": {"n": self.n, "seed": self.seed, **{k: d.as_toml() for k, d in self.sample.items()}}
@@ -152,9 +153,12 @@ def parse(text: str, where: str = "SPEC", overrides: dict | None = None) -> Spec
     if abs(round(stop / step) * step - stop) > 1e-9 * stop:
         raise SpecError(f"{where}: stop_time = {stop:g} s is not a whole number of communication steps "
                         f"of {step:g} s")
+    if overrides.get("motion") is not None:
+        doc["motion"] = overrides["motion"]
     motion = doc.get("motion", "reference")
     if not isinstance(motion, str) or not motion:
-        raise SpecError(f"{where}: `motion` = {motion!r}: must be \"reference\" or the path of a CSV file")
+        raise SpecError(f"{where}: `motion` = {motion!r}: must be \"reference\" or the path of a motion file "
+                        f"(TOML) or of a CSV table")
     if motion != "reference" and not Path(motion).is_file():
         raise SpecError(f"{where}: motion file {motion!r} does not exist")
     fmu = doc.get("fmu", str(DEFAULT_FMU))

@@ -32,7 +32,11 @@ to one communication interval (1e-4 s by default).
 Command line (the main job runs it after the reference run)::
 
     stickslip study [--out results/study] [--fixed-step H] [--step-h 2e-6]
-        [--cases step,friction,...] [--end 2.0] [--interval 1e-4] [--fmu FILE]
+        [--cases step,friction,...] [--end 2.0] [--interval 1e-4] [--fmu FILE] [--motion MOTION.toml]
+
+``--motion`` runs every variant with a motion file (docs/motion.md) instead of the reference
+motion; the claims are then checked on that motion, over the same time windows (the vibration
+over 0-1.5 s, the middle of the motion 0.3-1.2 s), which were chosen for the reference motion.
 
 Every case but the step case runs with the FMU's error-controlled sub-steps (its
 defaults), unless ``--fixed-step H`` fixes them (h_min = h_max = H); the step case
@@ -179,15 +183,19 @@ def _changed(parameters: dict, fmu) -> tuple:
 
 
 def simulate(variant: Variant, end: float = RUN_TIME, interval: float = DEFAULT_INTERVAL, fmu=DEFAULT_FMU,
-             progress: str | None = None):
+             progress: str | None = None, motion=None):
     """(outputs as numpy arrays, wall seconds) of one variant. Runs that differ from the FMU's
     defaults in the same parameters are done once per process: the reference run appears in
-    four cases."""
-    key = (str(fmu), end, interval, _changed(variant.parameters, fmu))
+    four cases. ``motion``: a loaded motion file (:func:`stickslip.motion.load_motion`), None
+    for the reference motion."""
+    key = (str(fmu), end, interval, _changed(variant.parameters, fmu), getattr(motion, "source", None))
     if key in _RUNS:
         return _RUNS[key], 0.0
     wall = time.perf_counter()
-    result = run(fmu, end, interval, dict(variant.parameters), progress=progress)
+    if motion is None:
+        result = run(fmu, end, interval, dict(variant.parameters), progress=progress)
+    else:
+        result = run(fmu, end, interval, dict(variant.parameters), motion, progress=progress)
     wall = time.perf_counter() - wall
     _RUNS[key] = {k: np.asarray(v, dtype=np.float64) for k, v in result.items()}
     return _RUNS[key], wall
@@ -338,14 +346,15 @@ def claims(case: Case, runs: list, m: list) -> list:
 
 
 def run_case(case: Case, end: float = RUN_TIME, interval: float = DEFAULT_INTERVAL, fmu=DEFAULT_FMU,
-             progress: bool = False) -> dict:
+             progress: bool = False, motion=None) -> dict:
     """Runs every variant of ``case``; returns {"runs": [...], "measures": [...], "claims": [...],
     "wall": [...]} (wall 0 for a run reused from an earlier case)."""
     runs, walls = [], []
     for k, v in enumerate(case.variants):
         label = f"  {case.name} {k + 1}/{len(case.variants)} ({v.label})"
         # simulate.run's running line rewrites itself with \r: only for a terminal
-        r, wall = simulate(v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None)
+        r, wall = simulate(v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None,
+                           motion=motion)
         if progress:
             print(f"{label}: " + (f"{wall:.1f} s wall" if wall else "reused") + f", max ε {np.max(r['eps']):.3e} m, "
                   "n_stick " + ", ".join(str(int(r[f"n_stick[{j}]"][-1])) for j in FLEXIBLE), flush=True)
@@ -471,9 +480,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step-h", type=float, default=DEFAULT_STEP_H,
                    help="finest fixed sub-step of the step case, which also runs half of it (default 2e-6 s)")
     p.add_argument("--cases", default=",".join(study_cases()), help="comma-separated subset")
-    p.add_argument("--end", type=float, default=RUN_TIME)
+    p.add_argument("--end", type=float, default=None,
+                   help=f"stop time, s (default {RUN_TIME:g}; with --motion the motion file's stop time)")
     p.add_argument("--interval", type=float, default=DEFAULT_INTERVAL, help="communication interval (s)")
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
+    p.add_argument("--motion", metavar="MOTION.toml", help="run the cases with this motion file (docs/motion.md) "
+                   "instead of the reference motion; the claims are checked over the reference motion's windows")
 
 
 def main(a: argparse.Namespace) -> int:
@@ -483,15 +495,28 @@ def main(a: argparse.Namespace) -> int:
     unknown = [c for c in chosen if c not in all_cases]
     if unknown:
         raise SystemExit(f"stickslip study: unknown case(s) {unknown}; choose from {list(all_cases)}")
+    motion, end = None, RUN_TIME if a.end is None else a.end
+    if a.motion is not None:
+        from .motion import MotionError
+        from .simulate import motion_of
+
+        try:
+            motion = motion_of(a.motion, a.fmu)
+        except MotionError as e:
+            raise SystemExit(f"stickslip study: {e}") from None
+        end = motion.stop_time if a.end is None else a.end
+        print(f"motion: {motion.describe()}", flush=True)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = {"fixed_step": a.fixed_step, "step_h": a.step_h, "interval": a.interval, "end": a.end, "fmu": a.fmu}
+    settings = {"fixed_step": a.fixed_step, "step_h": a.step_h, "interval": a.interval, "end": end, "fmu": a.fmu}
+    if a.motion is not None:
+        settings["motion"] = a.motion
     summary, failed = {}, []
     start = time.perf_counter()
     for n, name in enumerate(chosen, 1):
         case = all_cases[name]
         print(f"[{n}/{len(chosen)}] {name}: {len(case.variants)} runs ...", flush=True)
-        res = run_case(case, a.end, a.interval, a.fmu, progress=True)
+        res = run_case(case, end, a.interval, a.fmu, progress=True, motion=motion)
         write_case_csv(case, res["runs"], out / f"{name}.csv")
         plot_case(case, res["runs"], res["measures"], out / f"{name}.png")
         ok = all(c.holds for c in res["claims"])

@@ -33,7 +33,7 @@ from distributed import WorkerPlugin
 from .convergence import COLUMNS as CHECK_COLUMNS
 from .convergence import describe, run_checked, selected_runs, spread_columns, tightened
 from .fmu import content_hash, model_description
-from .motion import TableMotion, reference_inputs
+from .motion import TableMotion, load_motion_for, reference_inputs
 from .spec import Spec, SpecError, check_against
 from .variant import metric_names, plugin_name, run_variant
 
@@ -232,10 +232,14 @@ def _check_text(convergence: dict | None) -> str:
 
 
 def _motion(spec: Spec, md):
+    """The SPEC's motion: the reference cycloids, a motion file (TOML, docs/motion.md) checked
+    against the FMU's joints, or the older CSV table (:class:`TableMotion`)."""
     if spec.motion == "reference":
         return reference_inputs
     joints = sum(1 for v in md.modelVariables if v.causality == "input" and v.name.startswith("q_star["))
     try:
+        if Path(spec.motion).suffix.lower() != ".csv":
+            return load_motion_for(spec.motion, md)
         return TableMotion.from_csv(spec.motion, joints)
     except ValueError as e:
         raise SpecError(str(e)) from None
