@@ -168,11 +168,10 @@ def fmu_joints(md) -> tuple:
         if v.causality != "input" or not m:
             continue
         n += 1
-        found = re.search(r"\bjoint\s+(\d+)\s*\(([^)]*)\)", v.description or "")
+        # "joint 2 (`name`", "joint 2 (revolute, `name`" or "joint 2 `name`"
+        found = re.search(r"\bjoint\s+(\d+)\s*(?:\([^)`]*)?`([^`]+)`", v.description or "")
         if found and int(found.group(1)) == int(m.group(1)):
-            name = re.search(r"`([^`]+)`", found.group(2))
-            if name:
-                names[int(m.group(1))] = name.group(1)
+            names[int(m.group(1))] = found.group(2)
     return n, names
 
 

@@ -177,14 +177,16 @@ def test_joint_names_from_the_fmu_descriptions(tmp_path):
                                          var("q_star[2]", 2, "`iiwa_joint_2`, revolute, flexible drive"),
                                          var("q_star[3]", 3, "revolute, rigid drive"),
                                          var("qd_star[1]", 1, "`iiwa_joint_1`")])
+    md.modelVariables.append(SimpleNamespace(name="q_star[4]", causality="input",
+                                             description="Position of joint 4 `iiwa_joint_4` (revolute)"))
     joints, names = fmu_joints(md)
-    assert joints == 3 and names == {1: "iiwa_joint_1", 2: "iiwa_joint_2"}
+    assert joints == 4 and names == {1: "iiwa_joint_1", 2: "iiwa_joint_2", 4: "iiwa_joint_4"}
     m = load_motion(write(tmp_path / "m.toml", """
 [[joint]]
 name = "iiwa_joint_2"
 cycloid = { q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }
 """), joints, names)
-    assert m(0.5)[0] == [0.0, 0.5, 0.0]
+    assert m(0.5)[0] == [0.0, 0.5, 0.0, 0.0]
 
 
 def test_reference_fmu_has_four_unnamed_joints():
