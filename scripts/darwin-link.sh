@@ -13,9 +13,9 @@
 #     every `#[no_mangle]` function of every crate, so fmi-sys's `callback_log`
 #     would be a 35th export (mingw-link.sh does the same for win64);
 #   * `-install_name @rpath/StickSlipManipulator.dylib`, not the build path;
-#   * `-platform_version macos MIN <sdk>`: the minimum macOS, which rustc
-#     passes as `-mmacosx-version-min` from MACOSX_DEPLOYMENT_TARGET (10.13 for
-#     x86_64, 11.0 for arm64, set by scripts/darwin64.sh), the SDK version
+#   * `-platform_version macos MIN <sdk>`: the minimum macOS of the
+#     architecture, DARWIN64_MIN_MACOS_X86_64 / _ARM64 (10.13 for x86_64,
+#     11.0 for arm64, set by scripts/darwin64.sh), the SDK version
 #     from zig's SDKSettings.json;
 #   * `-S -x`: no debug map, no local symbols (stripped at link time: stripping
 #     afterwards would break the arm64 signature);
@@ -66,9 +66,12 @@ while [ "$i" -lt "${#flat[@]}" ]; do
     esac
     i=$((i + 1))
 done
+# Each architecture's own minimum macOS (DARWIN64_MIN_MACOS_ARM64, _X86_64 of
+# scripts/darwin64.sh): both targets build in one cargo run, under one
+# MACOSX_DEPLOYMENT_TARGET (x86_64's).
 case "$arch" in
-    arm64 | aarch64) arch=arm64; sign=(-adhoc_codesign) ;;
-    x86_64) sign=() ;;
+    arm64 | aarch64) arch=arm64; sign=(-adhoc_codesign); min="${DARWIN64_MIN_MACOS_ARM64:-$min}" ;;
+    x86_64) sign=(); min="${DARWIN64_MIN_MACOS_X86_64:-$min}" ;;
     *) echo "darwin-link.sh: unknown or missing architecture '$arch' (args: $*)" >&2; exit 2 ;;
 esac
 # A dylib without the export list would export every Rust symbol.

@@ -1,7 +1,7 @@
 # shellcheck shell=bash
 # scripts/darwin64.sh -- the darwin64 cross toolchain. SOURCED (after
 # scripts/env.sh with STICKSLIP_DARWIN64=1, which installs what it needs) by
-# scripts/build_fmu.sh when `--platforms` names darwin64.
+# scripts/build_fmu.sh when darwin64 is among its platforms (the default).
 #
 # The FMU's darwin64 binary is one universal (fat) Mach-O dylib with an x86_64
 # and an arm64 slice. Each slice is built like the win64 DLL: Debian's Rust
@@ -17,20 +17,23 @@
 #     package (scripts/darwin-link.sh, which also says why not zig's linker);
 #   * universal file: `llvm-lipo` of Debian's LLVM (package llvm-14).
 # Minimum macOS: 10.13 for x86_64, 11.0 for arm64 (the first macOS on Apple
-# silicon), as MACOSX_DEPLOYMENT_TARGET of each build.
-# Everything goes to $DARWIN64_TARGET_DIR (<target>/darwin64).
+# silicon), see _darwin64_env.
+# The cargo build goes to $DARWIN64_CARGO_DIR (<target>/win64, shared with the
+# win64 build, see darwin64_cargo), the rest to $DARWIN64_TARGET_DIR
+# (<target>/darwin64: zig venv, SDK stubs, the universal dylib).
 #
-#   darwin64_cargo TRIPLE SUBCOMMAND ARGS...  /usr/bin/cargo for one Apple target
-#                                             (niced), in a subshell
-#   darwin64_build                            both slices, merged into
-#                                             $DARWIN64_DYLIB
+#   darwin64_cargo SUBCOMMAND ARGS...  /usr/bin/cargo for both Apple targets
+#                                      at once (niced), in a subshell
+#   darwin64_build                     both slices, merged into $DARWIN64_DYLIB
 
 DARWIN64_TARGET_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/darwin64"
+DARWIN64_CARGO_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/win64"   # shared with win64, see darwin64_cargo
 DARWIN64_ZIG_VENV="${STICKSLIP_ZIG_VENV:-$DARWIN64_TARGET_DIR/zig-venv}"
 DARWIN64_DYLIB="$DARWIN64_TARGET_DIR/StickSlipManipulator.dylib"
 DARWIN64_INSTALL_NAME=@rpath/StickSlipManipulator.dylib
 # The only library the dylib may load: every macOS has it (in the dyld shared cache).
 DARWIN64_SYSTEM_LIBS=/usr/lib/libSystem.B.dylib
+DARWIN64_TRIPLES=(x86_64-apple-darwin aarch64-apple-darwin)
 declare -A DARWIN64_MIN_MACOS=([x86_64-apple-darwin]=10.13 [aarch64-apple-darwin]=11.0)
 
 # An LLVM tool of Debian's LLVM: NAME, else NAME-14.
@@ -79,31 +82,54 @@ PY
 }
 
 _darwin64_env() {
-    local triple="$1" var include zigdir
+    local triple var include zigdir
     zigdir=$("$DARWIN64_ZIG_VENV/bin/python" -c 'import os, ziglang; print(os.path.dirname(ziglang.__file__))' 2>/dev/null) || {
         echo "darwin64.sh: no ziglang in $DARWIN64_ZIG_VENV (scripts/env.sh installs it with STICKSLIP_DARWIN64=1)" >&2
         return 1
     }
-    var=$(echo "$triple" | tr 'a-z-' 'A-Z_')
     export RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1
-    export MACOSX_DEPLOYMENT_TARGET="${DARWIN64_MIN_MACOS[$triple]}"
+    # Both targets build in one cargo run, so one MACOSX_DEPLOYMENT_TARGET:
+    # x86_64's 10.13. rustc raises it to its arm64 minimum, 11.0, for
+    # aarch64-apple-darwin (max of the variable and the architecture's
+    # minimum); the C compiler and linker wrappers take each architecture's
+    # own from DARWIN64_MIN_MACOS_X86_64 / _ARM64.
+    export MACOSX_DEPLOYMENT_TARGET="${DARWIN64_MIN_MACOS[x86_64-apple-darwin]}"
+    export DARWIN64_MIN_MACOS_X86_64="${DARWIN64_MIN_MACOS[x86_64-apple-darwin]}"
+    export DARWIN64_MIN_MACOS_ARM64="${DARWIN64_MIN_MACOS[aarch64-apple-darwin]}"
     export DARWIN64_ZIG="$zigdir/zig" DARWIN64_SDK="$DARWIN64_TARGET_DIR/sdk" DARWIN64_INSTALL_NAME
     _darwin64_sdk "$zigdir/lib/libc/darwin" || return 1
     # rustc asks xcrun for the SDK unless SDKROOT names one (it only warns).
     export SDKROOT="$DARWIN64_SDK"
     DARWIN64_LLD=$(_darwin64_lld) || return 1
     export DARWIN64_LLD
-    export "CC_${triple//-/_}=$STICKSLIP_ROOT/scripts/darwin-cc.sh"
-    export "CARGO_TARGET_${var}_LINKER=$STICKSLIP_ROOT/scripts/darwin-link.sh"
     # bindgen (fmi-sys) parses the FMI headers for the Apple target with
     # libclang: clang's builtin headers (stddef.h) and zig's macOS headers.
     include=$(ls -d "${LIBCLANG_PATH:-/usr/lib/llvm-14/lib}"/clang/*/include 2>/dev/null | sort -V | tail -n1)
-    export "BINDGEN_EXTRA_CLANG_ARGS_${triple//-/_}=-I$include -isystem $zigdir/lib/libc/include/any-darwin-any"
+    for triple in "${DARWIN64_TRIPLES[@]}"; do
+        var=$(echo "$triple" | tr 'a-z-' 'A-Z_')
+        export "CC_${triple//-/_}=$STICKSLIP_ROOT/scripts/darwin-cc.sh"
+        export "CARGO_TARGET_${var}_LINKER=$STICKSLIP_ROOT/scripts/darwin-link.sh"
+        export "BINDGEN_EXTRA_CLANG_ARGS_${triple//-/_}=-I$include -isystem $zigdir/lib/libc/include/any-darwin-any"
+    done
 }
 
+# Both Apple targets in one cargo run (--target twice): the two std builds
+# and dependency trees fill each other's idle cores. Its cargo target dir is
+# win64's ($DARWIN64_CARGO_DIR = <target>/win64): the same compiler
+# (/usr/bin/rustc) and release profile, so the host build scripts and proc
+# macros (bindgen, clang-sys, syn, serde_derive, build.rs's nalgebra) that
+# the win64 build compiled are reused, not compiled again; each target's
+# artifacts have their own directory below it. std is built without its
+# `backtrace` feature (-Zbuild-std-features=panic-unwind): no gimli,
+# addr2line, object, miniz_oxide to compile twice; the dylib is linked
+# stripped, so there would be no symbols to show, and panics are caught at
+# the C boundary either way.
 darwin64_cargo() (
-    _darwin64_env "$1" || exit 1
-    nice /usr/bin/cargo "$2" -Zbuild-std=std,panic_unwind --target "$1" --target-dir "$DARWIN64_TARGET_DIR" "${@:3}"
+    _darwin64_env || exit 1
+    local targets=() t
+    for t in "${DARWIN64_TRIPLES[@]}"; do targets+=(--target "$t"); done
+    nice /usr/bin/cargo "$1" -Zbuild-std=std,panic_unwind -Zbuild-std-features=panic-unwind \
+        "${targets[@]}" --target-dir "$DARWIN64_CARGO_DIR" "${@:2}"
 )
 
 # Both slices (release), merged into the universal $DARWIN64_DYLIB. The
@@ -112,9 +138,9 @@ darwin64_cargo() (
 darwin64_build() {
     local triple lipo slices=()
     lipo=$(_darwin64_llvm llvm-lipo) || return 1
-    for triple in x86_64-apple-darwin aarch64-apple-darwin; do
-        darwin64_cargo "$triple" build --release --lib || return 1
-        slices+=("$DARWIN64_TARGET_DIR/$triple/release/libstick_slip_manipulator.dylib")
+    darwin64_cargo build --release --lib || return 1
+    for triple in "${DARWIN64_TRIPLES[@]}"; do
+        slices+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator.dylib")
     done
     rm -f "$DARWIN64_DYLIB"
     "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB"
