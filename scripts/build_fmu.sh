@@ -1,20 +1,21 @@
 #!/usr/bin/env bash
 # scripts/build_fmu.sh -- builds the FMI 2.0 co-simulation FMU.
 #
-#   bash scripts/build_fmu.sh [--platforms linux64,win64] [package_fmu args...]
+#   bash scripts/build_fmu.sh [--platforms linux64,win64,darwin64] [package_fmu args...]
 #
 #   --platforms LIST  the FMU binaries to build, comma-separated, of linux64,
-#                     win64, darwin64; default `linux64,win64`. `--platforms
-#                     linux64` skips the Windows cross-build while iterating;
-#                     `--platforms linux64,win64,darwin64` adds the macOS
-#                     universal dylib (scripts/darwin64.sh; its toolchain, the
-#                     PyPI package ziglang, is installed only then).
+#                     win64, darwin64; default `linux64,win64,darwin64` (all
+#                     three), or `linux64,win64` with STICKSLIP_DARWIN64=0 (a
+#                     developer's opt-out of the macOS cross-build and its
+#                     toolchain, the PyPI package ziglang; CI builds darwin64).
+#                     `--platforms linux64` skips the cross-builds while
+#                     iterating.
 #
 #   1. linux64: cargo build --release --lib --bin package_fmu   (the cdylib;
 #      build.rs also writes modelDescription/modelDescription.xml)
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
 #      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir target/win64
-#   2b. darwin64 (when asked for): the same library cross-built for
+#   2b. darwin64 (unless left out): the same library cross-built for
 #      x86_64-apple-darwin and aarch64-apple-darwin (scripts/darwin64.sh),
 #      target dir target/darwin64, merged by llvm-lipo into one universal dylib
 #   3. copies stripped of debug info and symbol table (strip --strip-all, into
@@ -37,7 +38,8 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
 
-platforms="linux64,win64"
+platforms="linux64,win64,darwin64"
+if [ "${STICKSLIP_DARWIN64:-1}" = 0 ]; then platforms="linux64,win64"; fi
 pass=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -62,10 +64,13 @@ if [ "$linux64" -eq 0 ]; then
     echo "build_fmu.sh: --platforms must include linux64" >&2
     exit 2
 fi
-# env.sh installs the darwin64 toolchain only when asked to.
-if [ "$darwin64" -eq 1 ]; then export STICKSLIP_DARWIN64=1; fi
+# env.sh installs the darwin64 toolchain only when darwin64 is built.
+if [ "$darwin64" -eq 1 ]; then export STICKSLIP_DARWIN64=1; else export STICKSLIP_DARWIN64=0; fi
+env_start=$SECONDS
 # shellcheck source=scripts/env.sh
 source scripts/env.sh
+# (with darwin64 in a clean clone: the ziglang download and venv)
+[ $((SECONDS - env_start)) -lt 2 ] || echo "build_fmu.sh: scripts/env.sh $((SECONDS - env_start)) s"
 
 TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
@@ -98,6 +103,7 @@ package_args=(--lib "$SO")
 if [ "$win64" -eq 1 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
+    win64_start=$SECONDS
     win64_cargo build --release --lib
     DLL="$STRIPPED/StickSlipManipulator.dll"
     x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$WIN64_RELEASE/stick_slip_manipulator.dll"
@@ -111,14 +117,16 @@ if [ "$win64" -eq 1 ]; then
         printf '  %s\n' $foreign >&2
         exit 1
     fi
-    echo "build_fmu.sh: win64 $(size "$WIN64_RELEASE/stick_slip_manipulator.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports)"
+    echo "build_fmu.sh: win64 $(size "$WIN64_RELEASE/stick_slip_manipulator.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports); cargo $((SECONDS - win64_start)) s"
     package_args+=(--win64-lib "$DLL")
 fi
 
 if [ "$darwin64" -eq 1 ]; then
     # shellcheck source=scripts/darwin64.sh
     source scripts/darwin64.sh
+    darwin64_start=$SECONDS
     darwin64_build
+    darwin64_seconds=$((SECONDS - darwin64_start))
     DYLIB="$DARWIN64_DYLIB"
     objdump=$(_darwin64_llvm llvm-objdump) nm=$(_darwin64_llvm llvm-nm) lipo=$(_darwin64_llvm llvm-lipo)
     arch="universal"
@@ -151,7 +159,7 @@ if [ "$darwin64" -eq 1 ]; then
         [ "$arch" = x86_64 ] || [ -n "$sig" ] || darwin_fail "no LC_CODE_SIGNATURE (Apple silicon loads no unsigned code)"
         summary+=("$arch: macOS $minos$sig")
     done
-    echo "build_fmu.sh: darwin64 $(size "$DYLIB") bytes, stripped, universal ($(printf '%s; ' "${summary[@]}" | sed 's/; $//')); imports: $DARWIN64_SYSTEM_LIBS; install name $DARWIN64_INSTALL_NAME"
+    echo "build_fmu.sh: darwin64 $(size "$DYLIB") bytes, stripped, universal ($(printf '%s; ' "${summary[@]}" | sed 's/; $//')); imports: $DARWIN64_SYSTEM_LIBS; install name $DARWIN64_INSTALL_NAME; cargo ${darwin64_seconds} s"
     package_args+=(--darwin64-lib "$DYLIB")
 fi
 
