@@ -17,9 +17,9 @@
 #   * the Debian packages of the win64 cross-build and its wine tests are
 #     installed (apt-get when missing): rustc-web, cargo-web, rust-web-src,
 #     gcc-mingw-w64-x86-64, wine64, wine (see _stickslip_ensure_win64_packages).
-#   * only with STICKSLIP_DARWIN64=1 (scripts/build_fmu.sh sets it for
-#     `--platforms ...,darwin64`): Debian's llvm-14 and the PyPI package
-#     `ziglang` in a venv of its own (see _stickslip_ensure_darwin64).
+#   * only with STICKSLIP_DARWIN64=1 (scripts/build_fmu.sh sets it when it
+#     builds darwin64, which it does by default): Debian's llvm-14 and the PyPI
+#     package `ziglang` in a venv of its own (see _stickslip_ensure_darwin64).
 #   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
 #
 # Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
@@ -96,8 +96,9 @@ _stickslip_ensure_win64_packages() {
 
 _stickslip_ensure_darwin64() {
     # Only when the darwin64 binary is to be built (STICKSLIP_DARWIN64=1, set by
-    # scripts/build_fmu.sh for `--platforms ...,darwin64`); the default path
-    # installs nothing of it. See scripts/darwin64.sh:
+    # scripts/build_fmu.sh when darwin64 is among its platforms, the default);
+    # sourced without it (scripts/test.sh's first stages, STICKSLIP_DARWIN64=0)
+    # it installs nothing of it. See scripts/darwin64.sh:
     #   llvm-14                Debian's LLVM tools: llvm-lipo (the universal
     #                          file), llvm-objdump, llvm-nm (the checks)
     #   lld-19                 ld64.lld, only if the rustup toolchain has no rust-lld

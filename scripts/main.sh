@@ -3,7 +3,8 @@
 # plot it, and run the slow (long-running) Python tests.
 #
 #   1. cargo build --release
-#   2. FMU packaging hook: scripts/build_fmu.sh, if it exists
+#   2. FMU packaging hook: scripts/build_fmu.sh, if it exists (its default
+#      platforms: linux64, win64, darwin64; STICKSLIP_DARWIN64=0 leaves darwin64 out)
 #   3. stickslip simulate --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
 #   5. stickslip study --out results/study   (the source study's five cases, docs/study.md)
