@@ -28,6 +28,14 @@ pub enum ModelError {
         /// Why it is rejected.
         reason: String,
     },
+    /// A URDF file that cannot be used: names the element and what is wrong.
+    #[error("URDF {element}: {reason}")]
+    Urdf {
+        /// The element, e.g. `<joint name="elbow">` or `<link name="link3"><inertial>`.
+        element: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A structural problem that is not one number (missing geometry, chain
     /// length, …).
     #[error("`{field}`: {reason}")]

@@ -6,6 +6,7 @@ mod link;
 mod manipulator;
 mod parameter;
 mod presets;
+pub mod urdf;
 
 pub use file::REFERENCE_RRPR_TOML;
 pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};
