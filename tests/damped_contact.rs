@@ -20,7 +20,7 @@
 //! it leaves and the iteration would find no consistent state.
 
 use stick_slip_manipulator::math::{Mat3, Vec3};
-use stick_slip_manipulator::model::{DhRow, Drive, IntegratorSettings, Joint, JointKind, Link};
+use stick_slip_manipulator::model::{DhJoint, DhRow, Drive, IntegratorSettings, JointKind, Link};
 use stick_slip_manipulator::{DriveInputs, InitialState, Model, Simulator};
 
 const MASS: f64 = 2.0;
@@ -29,19 +29,20 @@ const CLEARANCE: f64 = 1e-3;
 const SPEED: f64 = 0.05;
 
 fn block(damping: f64, integrator: IntegratorSettings) -> Model {
-    let model = Model {
-        name: "block".into(),
-        joints: vec![Joint {
+    let model = Model::from_dh(
+        "block",
+        &[DhJoint {
             kind: JointKind::Prismatic,
             dh: DhRow { theta: 0.0, d: 0.0, a: 0.0, alpha: 0.0 },
             drive: Drive::Flexible { stiffness: STIFFNESS, damping, clearance: CLEARANCE },
             friction: None,
         }],
-        links: vec![Link { mass: MASS, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
-        gravity: Vec3::zeros(),
-        end_point: Vec3::zeros(),
+        &[Link { mass: MASS, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
+        Vec3::zeros(),
+        Vec3::zeros(),
         integrator,
-    };
+    )
+    .expect("the model is valid");
     model.validate().expect("block is valid");
     model
 }

@@ -128,7 +128,8 @@ fn vee(m: &Mat3) -> Vec3 {
 
 #[test]
 fn joint_reactions_balance_the_momentum_of_the_subtree() {
-    // f_s = Σ_{l≥s} m_l (ẍ_cl − g), n_s = Σ_{l≥s} [(x_cl − p_{s−1}) × m_l (ẍ_cl − g) + I_l ω̇_l + ω_l × I_l ω_l],
+    // f_s = Σ_{l≥s} m_l (ẍ_cl − g), n_s = Σ_{l≥s} [(x_cl − p_s) × m_l (ẍ_cl − g) + I_l ω̇_l + ω_l × I_l ω_l]
+    // about the joint's origin p_s (the origin of link s's frame),
     // with positions, velocities and accelerations of every link taken from
     // B_l, Ḃ_l = Σ B_l^j q̇_j and B̈_l = Σ B_l^j q̈_j + Σ Σ B_l^{jk} q̇_j q̇_k.
     for (model, q, qd, qdd) in configurations() {
@@ -137,7 +138,7 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
         forward_kinematics(&model, &mut data, &q);
         rnea(&model, &mut data, &q, &qd, &qdd);
         for s in 1..=n {
-            let p = b_derivative(&model, &q, s - 1, &[]).fixed_view::<3, 1>(0, 3).into_owned();
+            let p = b_derivative(&model, &q, s, &[]).fixed_view::<3, 1>(0, 3).into_owned();
             let (mut f, mut m) = (Vec3::zeros(), Vec3::zeros());
             for l in s..=n {
                 let link = &model.links[l - 1];
@@ -171,7 +172,7 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
             // The reaction at the reaction reference point P in the joint frame,
             // from the frame-0 geometry of eq. (3.2).
             joint_reaction(&model, &mut data, s - 1);
-            let rt = data.joint_rotation[s - 1].transpose();
+            let rt = data.rotation[s].transpose();
             let point = reaction_point(&model, &data, s - 1);
             let (f_joint, m_joint) = (rt * f, rt * (m + (p - point).cross(&f)));
             let (rf, rm) = (data.reaction_force[s - 1], data.reaction_moment[s - 1]);
@@ -206,7 +207,8 @@ fn reference_manipulator_geometry_matches_its_description() {
     let e = stick_slip_manipulator::algorithms::kinematics::end_point(&model, &data);
     assert!((e - Vec3::new(0.9, 0.0, 0.7)).norm() < 1e-12, "E = {e}");
     forward_kinematics(&model, &mut data, &[0.0, 0.2, 0.8, 0.0]);
-    let arm_axis: Vec3 = data.rotation[2].column(2).into();
+    // Joint 3 slides along the z axis of link 3's frame.
+    let arm_axis: Vec3 = data.rotation[3].column(2).into();
     assert!((arm_axis - Vec3::new(0.2f64.cos(), 0.0, 0.2f64.sin())).norm() < 1e-12, "z2 = {arm_axis}");
     let m: MatN = lagrange::lagrange_terms(&model, &[0.0, 0.0, 0.8, 0.0], &[0.0; 4]).mass;
     assert!(m[(2, 2)] - 12.0 < 1e-12 && m[(2, 2)] > 11.999, "joint 3 moves links 3 and 4: 8 + 4 kg, got {}", m[(2, 2)]);

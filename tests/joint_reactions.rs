@@ -45,7 +45,7 @@ fn reactions_of_the_resting_arm_balance_the_weights() {
     let r2 = {
         let mut data = stick_slip_manipulator::Data::new(&model);
         stick_slip_manipulator::algorithms::kinematics::forward_kinematics(&model, &mut data, &q);
-        data.joint_rotation[2]
+        data.rotation[3]
     };
     assert!((n3 - r2.transpose() * m34).norm() < 1e-9 * m34.norm(), "n'_3 = {n3}");
     // The stuck joints hold with no drive force: the friction carries the axial load (zero here).

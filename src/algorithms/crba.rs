@@ -9,10 +9,10 @@ use crate::model::{JointKind, Model};
 /// the origin O of frame 0, from the last forward kinematics.
 #[inline]
 pub fn motion_subspace(model: &Model, data: &Data, i: usize) -> Vec6 {
-    let z: Vec3 = data.rotation[i].column(2).into();
+    let z: Vec3 = data.rotation[i + 1].column(2).into();
     match model.joints[i].kind {
-        // Rotation about the axis through the origin of frame i−1: v_O = p × z.
-        JointKind::Revolute => Vec6::new(z.x, z.y, z.z, 0.0, 0.0, 0.0) + lin(&data.origin[i].cross(&z)),
+        // Rotation about the axis through the joint's origin p: v_O = p × z.
+        JointKind::Revolute => Vec6::new(z.x, z.y, z.z, 0.0, 0.0, 0.0) + lin(&data.origin[i + 1].cross(&z)),
         JointKind::Prismatic => lin(&z),
     }
 }

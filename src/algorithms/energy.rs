@@ -12,16 +12,14 @@ pub fn kinetic_energy(model: &Model, data: &Data, qd: &[f64]) -> f64 {
     let (mut w, mut v) = (Vec3::zeros(), Vec3::zeros());
     let mut t = 0.0;
     for (i, (joint, link)) in model.joints.iter().zip(&model.links).enumerate() {
-        let (p, r) = (data.link_offset[i], data.dh_rotation[i]);
+        let (r, p) = (&data.link_rotation[i], data.link_offset_child[i]);
+        // Link i−1's motion in link i's frame, carried to the joint's origin.
+        let w_prev = r.tr_mul(&w);
+        v = r.tr_mul(&v) + w_prev.cross(&p);
+        w = w_prev;
         match joint.kind {
-            JointKind::Revolute => {
-                w = r.to_child(&(w + Vec3::z() * qd[i]));
-                v = r.to_child(&v) + w.cross(&p);
-            }
-            JointKind::Prismatic => {
-                w = r.to_child(&w);
-                v = r.to_child(&v) + w.cross(&p) + r.axis_in_child() * qd[i];
-            }
+            JointKind::Revolute => w.z += qd[i],
+            JointKind::Prismatic => v.z += qd[i],
         }
         let v_c = v + w.cross(&link.com);
         t += 0.5 * link.mass * v_c.norm_squared() + 0.5 * w.dot(&(link.inertia * w));

@@ -1,44 +1,45 @@
-//! Forward kinematics: the Denavit–Hartenberg transforms A_i, their products
-//! B_i = A_1…A_i (study eqs. 3.1, 3.2), and the end point E.
+//! Forward kinematics: the joint transforms A_i (study eq. 3.1, written as a
+//! constant placement followed by the joint's motion, see
+//! [`Joint`](crate::model::Joint)), their products B_i = A_1…A_i (eq. 3.2),
+//! and the end point E.
 
 use crate::data::Data;
-use crate::math::{sin_cos_near, DhRotation, Mat3, Mat4, ThetaAnchor, Vec3, ANCHOR_REACH};
-use crate::model::{Joint, JointKind, Model};
+use crate::math::{sin_cos_near, Mat3, Mat4, ThetaAnchor, Vec3, ANCHOR_REACH};
+use crate::model::{ContactGeometry, Joint, JointKind, Model};
 
-/// θ_i and d_i of joint `joint` at joint coordinate `q`.
-#[inline]
-pub fn dh_variables(joint: &Joint, q: f64) -> (f64, f64) {
+/// A_i = P_i · M_i(q): the homogeneous transform from link i's frame to
+/// link i−1's, the placement P_i followed by the motion M_i, Rot_z(q +
+/// offset) or Trans_z(q + offset) (eq. 3.1 in the engine's form).
+pub fn joint_transform(joint: &Joint, q: f64) -> Mat4 {
+    let mut m = Mat4::identity();
     match joint.kind {
-        JointKind::Revolute => (joint.dh.theta + q, joint.dh.d),
-        JointKind::Prismatic => (joint.dh.theta, joint.dh.d + q),
+        JointKind::Revolute => {
+            let (s, c) = (joint.offset + q).sin_cos();
+            m[(0, 0)] = c;
+            m[(0, 1)] = -s;
+            m[(1, 0)] = s;
+            m[(1, 1)] = c;
+        }
+        JointKind::Prismatic => m[(2, 3)] = joint.offset + q,
     }
+    let mut p = Mat4::identity();
+    p.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&joint.placement.rotation);
+    p.fixed_view_mut::<3, 1>(0, 3)
+        .copy_from(&joint.placement.translation);
+    p * m
 }
 
-/// A_i = Rot_z(θ_i) · Trans_z(d_i) · Trans_x(a_i) · Rot_x(α_i) (eq. 3.1): the
-/// homogeneous transform from frame i to frame i−1.
-pub fn dh_transform(joint: &Joint, q: f64) -> Mat4 {
-    let (theta, d) = dh_variables(joint, q);
-    let (st, ct) = theta.sin_cos();
-    let (sa, ca) = joint.dh.alpha.sin_cos();
-    let a = joint.dh.a;
-    Mat4::new(
-        ct, -st * ca, st * sa, a * ct, //
-        st, ct * ca, -ct * sa, a * st, //
-        0.0, sa, ca, d, //
-        0.0, 0.0, 0.0, 1.0,
-    )
-}
-
-/// The joint-dependent parts of the DH transforms A_i (eq. 3.1) at joint
-/// coordinates `q`: the rotations in `data.dh_rotation`, d_i in `data.dh_d`
-/// and the link offset p_i = O_i − O_{i−1} resolved in frame i,
-/// (a_i, d_i·sin α_i, d_i·cos α_i), in `data.link_offset`. This is all the
-/// recursive inverse dynamics needs: it works in the link frames. The sines
-/// and cosines of θ_i come from the library and become the anchors of
+/// The joint-dependent parts of the transforms A_i at joint coordinates `q`:
+/// the rotations R_i in `data.link_rotation`, the offsets p_i = O_i − O_{i−1}
+/// in `data.link_offset` (link i−1's frame) and `data.link_offset_child`
+/// (link i's frame). This is all the recursive inverse dynamics needs: it
+/// works in the link frames. The sines and cosines of the revolute joints'
+/// angles come from the library and become the anchors of
 /// [`joint_transforms_near_anchors`].
 #[inline(always)]
 pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
-    dh_joint_parts(model, data, q, false);
+    joint_parts(model, data, q, false);
     record_transforms(data, q);
 }
 
@@ -50,7 +51,7 @@ pub fn joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
 /// the anchor and q only.
 #[inline(always)]
 pub fn joint_transforms_near_anchors(model: &Model, data: &mut Data, q: &[f64]) {
-    dh_joint_parts(model, data, q, true);
+    joint_parts(model, data, q, true);
     record_transforms(data, q);
 }
 
@@ -68,7 +69,10 @@ pub fn update_joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
         joint_transforms(model, data, q);
         return;
     }
-    let moved = q.iter().zip(&data.transforms_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
+    let moved = q
+        .iter()
+        .zip(&data.transforms_q)
+        .any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
     if moved {
         joint_transforms_near_anchors(model, data, q);
     }
@@ -87,35 +91,61 @@ fn record_transforms(data: &mut Data, q: &[f64]) {
 }
 
 #[inline(always)]
-fn dh_joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool) {
+fn joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool) {
     let n = model.nq();
-    let (rotation, dh_d, link_offset) = (&mut data.dh_rotation[..n], &mut data.dh_d[..n], &mut data.link_offset[..n]);
-    let (anchor, q) = (&mut data.theta_anchor[..n], &q[..n]);
+    let (rotation, offset, offset_child) = (
+        &mut data.link_rotation[..n],
+        &mut data.link_offset[..n],
+        &mut data.link_offset_child[..n],
+    );
+    let (anchor, local, q) = (
+        &mut data.theta_anchor[..n],
+        &data.origin_in_joint_frame[..n],
+        &q[..n],
+    );
     for (i, joint) in model.joints.iter().enumerate().take(n) {
-        // The constant θ of a prismatic joint keeps the sines set by `Data::new`.
-        if joint.kind == JointKind::Revolute {
-            let delta = q[i] - anchor[i].q;
-            let (st, ct) = if near_anchors && delta.abs() <= ANCHOR_REACH {
-                sin_cos_near(anchor[i].sin_theta, anchor[i].cos_theta, delta)
-            } else {
-                let (st, ct) = (joint.dh.theta + q[i]).sin_cos();
-                anchor[i] = ThetaAnchor { q: q[i], sin_theta: st, cos_theta: ct };
-                (st, ct)
-            };
-            rotation[i].sin_theta = st;
-            rotation[i].cos_theta = ct;
+        let placement = &joint.placement;
+        match joint.kind {
+            JointKind::Revolute => {
+                let delta = q[i] - anchor[i].q;
+                let (st, ct) = if near_anchors && delta.abs() <= ANCHOR_REACH {
+                    sin_cos_near(anchor[i].sin_theta, anchor[i].cos_theta, delta)
+                } else {
+                    let (st, ct) = (joint.offset + q[i]).sin_cos();
+                    anchor[i] = ThetaAnchor {
+                        q: q[i],
+                        sin_theta: st,
+                        cos_theta: ct,
+                    };
+                    (st, ct)
+                };
+                // P·Rot_z(θ): the placement's x and y turned by θ, z the axis.
+                let (px, py, pz) = (
+                    placement.rotation.column(0),
+                    placement.rotation.column(1),
+                    placement.rotation.column(2),
+                );
+                rotation[i] =
+                    Mat3::from_columns(&[px * ct + py * st, py * ct - px * st, pz.into_owned()]);
+                offset[i] = placement.translation;
+                // Rot_z(θ)ᵀ·(Pᵀ·p).
+                let u = local[i];
+                offset_child[i] = Vec3::new(ct * u.x + st * u.y, ct * u.y - st * u.x, u.z);
+            }
+            JointKind::Prismatic => {
+                // The rotation is the placement's (set by `Data::new`).
+                let s = joint.offset + q[i];
+                offset[i] = placement.translation + placement.rotation.column(2) * s;
+                offset_child[i] = local[i] + Vec3::z() * s;
+            }
         }
-        let d = dh_variables(joint, q[i]).1;
-        dh_d[i] = d;
-        link_offset[i] = Vec3::new(joint.dh.a, d * rotation[i].sin_alpha, d * rotation[i].cos_alpha);
     }
 }
 
-/// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n),
-/// the joint frames, and every link's centre of mass and inertia in frame 0,
-/// for joint coordinates `q` (length n); it first calls [`joint_transforms`]
-/// for `q`. `data` must have been built for `model` (it holds the sines and
-/// cosines of the constant DH angles).
+/// Fills `data.rotation[i]`, `data.origin[i]` (frame i in frame 0, i = 0…n)
+/// and every link's centre of mass and inertia in frame 0, for joint
+/// coordinates `q` (length n); it first calls [`joint_transforms`] for `q`.
+/// `data` must have been built for `model`.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     joint_transforms(model, data, q);
     frame_kinematics(model, data);
@@ -127,7 +157,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
 pub fn forward_kinematics_at_transforms(model: &Model, data: &mut Data) {
     // Taken out and put back: no copy, no allocation.
     let q = std::mem::take(&mut data.transforms_q);
-    dh_joint_parts(model, data, &q, false);
+    joint_parts(model, data, &q, false);
     data.transforms_q = q;
     data.transforms_current = true;
     frame_kinematics(model, data);
@@ -141,29 +171,19 @@ fn frame_kinematics(model: &Model, data: &mut Data) {
         model.links.len() == n
             && data.rotation.len() == n + 1
             && data.origin.len() == n + 1
-            && data.joint_rotation.len() == n
-            && data.joint_origin.len() == n
+            && data.link_rotation.len() == n
+            && data.link_offset.len() == n
             && data.com.len() == n
             && data.inertia.len() == n,
         "forward_kinematics: data must be sized for the model"
     );
     data.rotation[0] = Mat3::identity();
     data.origin[0] = Vec3::zeros();
-    for (i, joint) in model.joints.iter().enumerate() {
-        let DhRotation { sin_theta: st, cos_theta: ct, sin_alpha: sa, cos_alpha: ca } = data.dh_rotation[i];
-        let d = data.dh_d[i];
-        let parent_r = data.rotation[i];
-        let (x, y, z) = (parent_r.column(0), parent_r.column(1), parent_r.column(2));
-        // Joint frame: Rot_z(θ)·Trans_z(d) applied to frame i−1; z stays the joint axis.
-        let jx = x * ct + y * st;
-        let jy = y * ct - x * st;
-        let joint_p = data.origin[i] + z * d;
-        data.joint_rotation[i] = Mat3::from_columns(&[jx, jy, z.into_owned()]);
-        data.joint_origin[i] = joint_p;
-        // Trans_x(a)·Rot_x(α).
-        let rot = Mat3::from_columns(&[jx, jy * ca + z * sa, z * ca - jy * sa]);
+    for i in 0..n {
+        let parent = data.rotation[i];
+        let rot = parent * data.link_rotation[i];
+        data.origin[i + 1] = data.origin[i] + parent * data.link_offset[i];
         data.rotation[i + 1] = rot;
-        data.origin[i + 1] = joint_p + jx * joint.dh.a;
         let link = &model.links[i];
         data.com[i] = data.origin[i + 1] + rot * link.com;
         data.inertia[i] = rot * link.inertia * rot.transpose();
@@ -186,34 +206,22 @@ pub fn end_point(model: &Model, data: &Data) -> Vec3 {
     data.origin[n] + data.rotation[n] * model.end_point
 }
 
-/// Reaction reference point of joint `i` (0-based) in frame 0: the bearing
-/// reference point (given in frame i−1) of a revolute joint, the slider centre
-/// (given in frame i) of a prismatic joint, else the joint frame's origin.
-pub fn reaction_point(model: &Model, data: &Data, i: usize) -> Vec3 {
-    use crate::model::ContactGeometry;
+/// The reaction reference point of joint `i` (0-based) in link i's frame:
+/// the bearing reference point (on the axis, where the joint's rotation does
+/// not move it), the slider centre, or the joint's origin.
+#[inline(always)]
+pub fn reaction_point_local(model: &Model, i: usize) -> Vec3 {
     match model.joints[i].friction.map(|f| f.geometry) {
-        Some(ContactGeometry::Bearings { reaction_point, .. }) => data.origin[i] + data.rotation[i] * reaction_point,
-        Some(ContactGeometry::Slider { centre, .. }) => data.origin[i + 1] + data.rotation[i + 1] * centre,
-        None => data.joint_origin[i],
+        Some(ContactGeometry::Bearings { reaction_point, .. }) => reaction_point,
+        Some(ContactGeometry::Slider { centre, .. }) => centre,
+        None => Vec3::zeros(),
     }
 }
 
-/// O_{i−1} − P for joint `i` (0-based): from its reaction reference point P
-/// (see [`reaction_point`]) to the origin of frame i−1, resolved in the joint
-/// frame, from the last [`joint_transforms`]. The joint frame's origin is
-/// O_{i−1} + d_i·z_{i−1}; frame i's is that plus a_i along the joint frame's x.
-#[inline(always)]
-pub fn reaction_offset(model: &Model, data: &Data, i: usize) -> Vec3 {
-    use crate::model::ContactGeometry;
-    let d = data.dh_d[i];
-    match model.joints[i].friction.map(|f| f.geometry) {
-        // P given in frame i−1: turn it by −θ_i about z.
-        Some(ContactGeometry::Bearings { reaction_point, .. }) => -data.dh_rotation[i].parent_to_joint_frame(&reaction_point),
-        Some(ContactGeometry::Slider { centre, .. }) => {
-            Vec3::new(-model.joints[i].dh.a, 0.0, -d) - data.dh_rotation[i].to_joint_frame(&centre)
-        }
-        None => Vec3::new(0.0, 0.0, -d),
-    }
+/// Reaction reference point of joint `i` (0-based) in frame 0, from the last
+/// forward kinematics (see [`reaction_point_local`]).
+pub fn reaction_point(model: &Model, data: &Data, i: usize) -> Vec3 {
+    data.origin[i + 1] + data.rotation[i + 1] * reaction_point_local(model, i)
 }
 
 #[cfg(test)]

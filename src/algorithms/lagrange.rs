@@ -4,23 +4,31 @@
 //! Straightforward and O(n⁴): every derivative of B_i is built as the product
 //! of eq. (3.6), with the constant matrices D_j inserted before A_j.
 
-use super::kinematics::dh_transform;
+use super::kinematics::joint_transform;
 use crate::math::{Mat4, MatN, Vec4, VecN};
-use crate::model::{JointKind, Model};
+use crate::model::{Joint, JointKind, Model};
 
-/// The constant matrix D_j with ∂A_j/∂q_j = D_j·A_j (eq. 3.6).
-pub fn derivative_operator(kind: JointKind) -> Mat4 {
+/// The constant matrix D_j with ∂A_j/∂q_j = D_j·A_j (eq. 3.6). With A_j =
+/// P_j·M_j(q) (a placement, then the motion) and ∂M_j/∂q = D·M_j for the
+/// motion's generator D, D_j = P_j·D·P_j⁻¹.
+pub fn derivative_operator(joint: &Joint) -> Mat4 {
     let mut d = Mat4::zeros();
-    match kind {
-        // Rot_z(θ) is the leftmost factor of A_j: ∂/∂θ Rot_z = [ẑ]× Rot_z.
+    match joint.kind {
+        // ∂/∂θ Rot_z = [ẑ]× Rot_z.
         JointKind::Revolute => {
             d[(0, 1)] = -1.0;
             d[(1, 0)] = 1.0;
         }
-        // Trans_z(d) commutes with Rot_z and so can be taken leftmost.
         JointKind::Prismatic => d[(2, 3)] = 1.0,
     }
-    d
+    let (r, t) = (joint.placement.rotation, joint.placement.translation);
+    let mut p = Mat4::identity();
+    p.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    p.fixed_view_mut::<3, 1>(0, 3).copy_from(&t);
+    let mut p_inv = Mat4::identity();
+    p_inv.fixed_view_mut::<3, 3>(0, 0).copy_from(&r.transpose());
+    p_inv.fixed_view_mut::<3, 1>(0, 3).copy_from(&(-(r.transpose() * t)));
+    p * d * p_inv
 }
 
 /// B_i^{j…} of eq. (3.6): A_1…A_i with D_k inserted before A_k once for
@@ -34,9 +42,9 @@ pub fn b_derivative(model: &Model, q: &[f64], i: usize, derivatives: &[usize]) -
     for k in 1..=i {
         let joint = &model.joints[k - 1];
         for _ in derivatives.iter().filter(|&&d| d == k) {
-            b *= derivative_operator(joint.kind);
+            b *= derivative_operator(joint);
         }
-        b *= dh_transform(joint, q[k - 1]);
+        b *= joint_transform(joint, q[k - 1]);
     }
     b
 }

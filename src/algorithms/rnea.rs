@@ -1,10 +1,11 @@
 //! Recursive Newton–Euler inverse dynamics with joint reactions (Luh, Walker
 //! and Paul 1980, as cited by the study in section 3), in the link frames:
-//! every quantity of link i is resolved in frame i, so the recursion needs
-//! only the DH transforms A_i of [`joint_transforms`](super::kinematics::joint_transforms)
-//! (a rotation by θ_i about z and one by α_i about x) and no frame-0 kinematics.
+//! every quantity of link i is resolved in link i's frame, so the recursion
+//! needs only the joint transforms A_i of
+//! [`joint_transforms`](super::kinematics::joint_transforms) (the rotation
+//! R_i and the offset p_i of link i in link i−1) and no frame-0 kinematics.
 
-use super::kinematics::reaction_offset;
+use super::kinematics::reaction_point_local;
 use crate::data::Data;
 use crate::math::Vec3;
 use crate::model::{JointKind, Model};
@@ -19,10 +20,10 @@ use crate::model::{JointKind, Model};
 /// that iterates q̈ at fixed q does so once for several calls. Debug builds
 /// check that they belong to `q`.
 /// Results: `data.tau` (τ = M q̈ + bias, length n), the joint forces
-/// `data.force[i]` and moments `data.moment[i]` (about the origin of frame
-/// i−1) exerted by link i−1 on link i, resolved in frame i, and the link
-/// angular velocities and accelerations and origin accelerations, each in its
-/// own frame.
+/// `data.force[i]` and moments `data.moment[i]` (about the joint's origin,
+/// the origin of link i's frame) exerted by link i−1 on link i, resolved in
+/// link i's frame, and the link angular velocities and accelerations and
+/// origin accelerations, each in its own frame.
 ///
 /// The forward loop carries velocities and accelerations from link 1 to n,
 /// the backward loop the joint forces from joint n to 1.
@@ -40,8 +41,9 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
         qd.len() == n
             && qdd.len() == n
             && model.links.len() == n
-            && data.dh_rotation.len() == n
+            && data.link_rotation.len() == n
             && data.link_offset.len() == n
+            && data.link_offset_child.len() == n
             && data.omega.len() == n + 1
             && data.omega_dot.len() == n + 1
             && data.acceleration.len() == n + 1
@@ -55,23 +57,22 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
     // Gravity enters as an upward acceleration of the base.
     data.acceleration[0] = -model.gravity;
     for i in 0..n {
-        let (p, r) = (data.link_offset[i], data.dh_rotation[i]);
-        let (w_prev, wd_prev) = (data.omega[i], data.omega_dot[i]);
-        let a_prev = r.to_child(&data.acceleration[i]);
+        let (r, p) = (&data.link_rotation[i], data.link_offset_child[i]);
+        // Link i−1's motion resolved in link i's frame.
+        let (w_prev, wd_prev, a_prev) = (r.tr_mul(&data.omega[i]), r.tr_mul(&data.omega_dot[i]), r.tr_mul(&data.acceleration[i]));
         let (w, wd, a) = match model.joints[i].kind {
             JointKind::Revolute => {
-                // In frame i−1: ω + z·q̇, ω̇ + z·q̈ + ω × z·q̇ with ω × z = (ω_y, −ω_x, 0).
-                let w_p = Vec3::new(w_prev.x, w_prev.y, w_prev.z + qd[i]);
-                let wd_p = Vec3::new(wd_prev.x + w_prev.y * qd[i], wd_prev.y - w_prev.x * qd[i], wd_prev.z + qdd[i]);
-                let (w, wd) = (r.to_child(&w_p), r.to_child(&wd_p));
-                (w, wd, a_prev + wd.cross(&p) + w.cross(&w.cross(&p)))
+                // ω + z·q̇, ω̇ + z·q̈ + ω × z·q̇ with ω × z = (ω_y, −ω_x, 0); the
+                // joint's origin is a point of link i−1.
+                let w = Vec3::new(w_prev.x, w_prev.y, w_prev.z + qd[i]);
+                let wd = Vec3::new(wd_prev.x + w_prev.y * qd[i], wd_prev.y - w_prev.x * qd[i], wd_prev.z + qdd[i]);
+                (w, wd, a_prev + wd_prev.cross(&p) + w_prev.cross(&w_prev.cross(&p)))
             }
             JointKind::Prismatic => {
-                // p = O_i − O_{i−1} turns with link i−1 and grows along the axis.
-                let (w, wd) = (r.to_child(&w_prev), r.to_child(&wd_prev));
-                let axis = r.axis_in_child();
-                let a = a_prev + axis * qdd[i] + wd.cross(&p) + w.cross(&(w.cross(&p) + axis * (2.0 * qd[i])));
-                (w, wd, a)
+                // p turns with link i−1 and grows along the axis z.
+                let axis = Vec3::z();
+                let a = a_prev + axis * qdd[i] + wd_prev.cross(&p) + w_prev.cross(&(w_prev.cross(&p) + axis * (2.0 * qd[i])));
+                (w_prev, wd_prev, a)
             }
         };
         data.omega[i + 1] = w;
@@ -87,19 +88,20 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
         let a_c = data.acceleration[i + 1] + wd.cross(&c) + w.cross(&w.cross(&c));
         let f_inertial = a_c * link.mass;
         let n_inertial = link.inertia * wd + w.cross(&(link.inertia * w));
-        // The child's force, and its moment about O_i, resolved in frame i.
-        let (f_child, n_child) = match data.dh_rotation.get(i + 1) {
-            Some(r) => (r.to_parent(&f_next), r.to_parent(&n_next)),
-            None => (f_next, n_next),
+        // The child's force and moment (about its joint's origin p'),
+        // resolved in link i's frame, the moment moved to O_i.
+        let (f_child, n_child) = match (data.link_rotation.get(i + 1), data.link_offset.get(i + 1)) {
+            (Some(r), Some(p_next)) => {
+                let f_child = r * f_next;
+                (f_child, r * n_next + p_next.cross(&f_child))
+            }
+            _ => (f_next, n_next),
         };
-        let p = data.link_offset[i];
         let f = f_inertial + f_child;
-        // About O_{i−1}: (p + c) × F + p × f_child = c × F + p × f.
-        let m = n_inertial + c.cross(&f_inertial) + p.cross(&f) + n_child;
-        let axis = data.dh_rotation[i].axis_in_child();
+        let m = n_inertial + c.cross(&f_inertial) + n_child;
         data.tau[i] = match model.joints[i].kind {
-            JointKind::Revolute => axis.dot(&m),
-            JointKind::Prismatic => axis.dot(&f),
+            JointKind::Revolute => m.z,
+            JointKind::Prismatic => f.z,
         };
         data.force[i] = f;
         data.moment[i] = m;
@@ -109,7 +111,7 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
 }
 
 /// Joint reactions of every joint at its reaction reference point, resolved
-/// in the joint frame (z along the joint axis), from the last [`rnea`] call:
+/// in link i's frame (z along the joint axis), from the last [`rnea`] call:
 /// `data.reaction_force[i]` (f_s, or f'_s for a slider) and
 /// `data.reaction_moment[i]` (n_s, or n'_s).
 pub fn joint_reactions(model: &Model, data: &mut Data) {
@@ -121,9 +123,8 @@ pub fn joint_reactions(model: &Model, data: &mut Data) {
 /// The reaction of joint `i` (0-based) only, as in [`joint_reactions`].
 #[inline(always)]
 pub fn joint_reaction(model: &Model, data: &mut Data, i: usize) {
-    let r = data.dh_rotation[i];
-    let (f, m) = (r.to_joint_frame(&data.force[i]), r.to_joint_frame(&data.moment[i]));
-    // Moment about the reaction point P from the moment about O_{i−1}.
+    let f = data.force[i];
+    // Moment about the reaction point P from the moment about the origin.
     data.reaction_force[i] = f;
-    data.reaction_moment[i] = m + reaction_offset(model, data, i).cross(&f);
+    data.reaction_moment[i] = data.moment[i] - reaction_point_local(model, i).cross(&f);
 }

@@ -24,7 +24,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use stick_slip_manipulator::fmi::description::{model_description_xml, MODEL_IDENTIFIER};
-use stick_slip_manipulator::model::REFERENCE_RRPR_TOML;
+use stick_slip_manipulator::model::{with_urdf_file_name, ModelSource, REFERENCE_RRPR_TOML};
 use stick_slip_manipulator::Model;
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, DateTime, ZipWriter};
@@ -68,8 +68,43 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Some(p) => std::fs::read_to_string(p).map_err(|e| format!("cannot read {}: {e}", p.display()))?,
         None => REFERENCE_RRPR_TOML.to_string(),
     };
-    let model = Model::from_toml_str(&text)
-        .map_err(|e| format!("{}: {e}", model_path.as_deref().unwrap_or(Path::new("reference model")).display()))?;
+    let shown = model_path.as_deref().unwrap_or(Path::new("reference model")).display().to_string();
+    let model = match &model_path {
+        Some(p) => Model::from_file(p),
+        None => Model::from_toml_str(&text),
+    }
+    .map_err(|e| format!("{shown}: {e}"))?;
+    for warning in &model.warnings {
+        eprintln!("package_fmu: warning: {shown}: {warning}");
+    }
+    // A URDF model carries its URDF in resources/, its model file naming it there.
+    let mut resources = Vec::new();
+    let source = match Model::urdf_reference(&text) {
+        None => ModelSource::toml(text),
+        Some(reference) => {
+            let dir = model_path.as_deref().and_then(Path::parent).unwrap_or(Path::new("."));
+            let urdf_path = dir.join(&reference);
+            let urdf =
+                std::fs::read_to_string(&urdf_path).map_err(|e| format!("cannot read {}: {e}", urdf_path.display()))?;
+            let file_name = Path::new(&reference)
+                .file_name()
+                .and_then(|n| n.to_str())
+                .filter(|n| *n != "model.toml")
+                .ok_or_else(|| format!("{shown}: the URDF `{reference}` needs a file name other than model.toml"))?
+                .to_string();
+            let toml = with_urdf_file_name(&text, &file_name).ok_or_else(|| {
+                format!("{shown}: cannot rewrite its `urdf = ...` line to name resources/{file_name}; put `urdf` on a line of its own")
+            })?;
+            let packaged = ModelSource { toml, urdf: Some(urdf) };
+            // What the FMU will read must be the model that was checked here.
+            if packaged.model().map_err(|e| format!("{shown} as packaged: {e}"))? != model {
+                return Err(format!("{shown}: the packaged model file does not give the same model").into());
+            }
+            resources.push((format!("resources/{file_name}"), packaged.urdf.clone().unwrap_or_default()));
+            packaged
+        }
+    };
+    let text = source.fingerprint_text().into_owned();
     let mut binaries = vec![(format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), read_library(&lib)?)];
     if let Some(dll) = &win64_lib {
         binaries.push((format!("binaries/win64/{MODEL_IDENTIFIER}.dll"), read_library(dll)?));
@@ -96,7 +131,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         zip.write_all(binary)?;
     }
     zip.start_file("resources/model.toml", options)?;
-    zip.write_all(text.as_bytes())?;
+    zip.write_all(source.toml.as_bytes())?;
+    for (name, content) in &resources {
+        zip.start_file(name.as_str(), options)?;
+        zip.write_all(content.as_bytes())?;
+    }
     zip.finish()?;
     std::fs::rename(&partial, &out)?;
     let platforms: Vec<&str> = binaries.iter().filter_map(|(name, _)| name.split('/').nth(1)).collect();

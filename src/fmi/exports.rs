@@ -20,6 +20,7 @@ use super::lifecycle::{LifeCycle::*, States};
 use super::logger::{Category, Logger};
 use super::status::{Fault, Status};
 use super::uri::resource_path;
+use crate::model::{Model, ModelSource};
 use fmi_sys::fmi2::*;
 use std::ffi::{c_char, CString};
 
@@ -157,11 +158,12 @@ pub unsafe extern "C" fn fmi2Instantiate(
             // SAFETY: null or valid by contract.
             let guid = unsafe { text(fmuGUID, "fmuGUID") }.map_err(|f| f.message)?;
             let location = unsafe { text(fmuResourceLocation, "fmuResourceLocation") }.map_err(|f| f.message)?;
-            let file = resource_path(location)?.join("model.toml");
+            let resources = resource_path(location)?;
+            let file = resources.join("model.toml");
             let model_text = std::fs::read_to_string(&file)
                 .map_err(|e| format!("cannot read the model file {}: {e}", file.display()))?;
-            let instance =
-                Instance::new(&model_text, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
+            let source = ModelSource { urdf: model_urdf(&resources, &model_text)?, toml: model_text };
+            let instance = Instance::new(&source, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
             if instance.guid() != guid {
                 return Err(format!(
                     "fmuGUID {guid} does not match the FMU's resources (GUID {}): modelDescription.xml and resources/model.toml are from different FMUs",
@@ -178,6 +180,17 @@ pub unsafe extern "C" fn fmi2Instantiate(
             }
         }
     })
+}
+
+/// The text of the URDF a packaged model file names: a plain file name in
+/// `resources/`, as the packaging writes it.
+fn model_urdf(resources: &std::path::Path, model_text: &str) -> Result<Option<String>, String> {
+    let Some(name) = Model::urdf_reference(model_text) else { return Ok(None) };
+    if name.is_empty() || name.contains(['/', '\\']) || name == ".." {
+        return Err(format!("resources/model.toml names the URDF `{name}`; a packaged model names a file in resources/"));
+    }
+    let path = resources.join(&name);
+    std::fs::read_to_string(&path).map(Some).map_err(|e| format!("cannot read the URDF {}: {e}", path.display()))
 }
 
 /// Frees the instance; NULL is accepted. Any state.

@@ -8,7 +8,7 @@ use super::logger::{Category, Logger};
 use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
-use crate::model::Model;
+use crate::model::{Model, ModelSource};
 use crate::stepper::{DriveInputs, InitialState, Phase, Simulator, State, INPUT_RANGES};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
@@ -93,15 +93,19 @@ fn type_error(v: &Variable, expected: &str) -> Fault {
 }
 
 impl Instance {
-    /// An instance of the model in `model_text` (a model file), logging to
-    /// `logger`.
-    pub(crate) fn new(model_text: &str, logger: Logger) -> Result<Instance, String> {
-        let model = Model::from_toml_str(model_text).map_err(|e| e.to_string())?;
+    /// An instance of the model in `source` (a model file and the URDF it
+    /// names), logging to `logger`; the model's warnings are logged.
+    pub(crate) fn new(source: &ModelSource, logger: Logger) -> Result<Instance, String> {
+        let model = source.model().map_err(|e| e.to_string())?;
+        for warning in &model.warnings {
+            logger.log(Status::Warning, Category::StatusWarning, &format!("model `{}`: {warning}", model.name));
+        }
         let variables = description::variables(&model);
         let n = model.nq();
+        let text = source.fingerprint_text();
         let mut instance = Instance {
-            model_hash: description::model_hash(model_text, &variables),
-            guid: description::guid(model_text, &variables),
+            model_hash: description::model_hash(&text, &variables),
+            guid: description::guid(&text, &variables),
             variables,
             sim: Simulator::new(model.clone()).map_err(|e| e.to_string())?,
             base: model,

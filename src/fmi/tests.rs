@@ -11,7 +11,7 @@ use super::instance::Instance;
 use super::lifecycle::{LifeCycle, States};
 use super::logger::{Logger, MemoryLog as Log};
 use super::status::Status;
-use crate::model::{Model, REFERENCE_RRPR_TOML};
+use crate::model::{Model, ModelSource, REFERENCE_RRPR_TOML};
 use fmi_sys::fmi2::*;
 
 const OK: fmi2Status = fmi2Status_fmi2OK;
@@ -20,7 +20,7 @@ const ERROR: fmi2Status = fmi2Status_fmi2Error;
 /// A fresh instance of the reference model and its log.
 fn instance() -> (fmi2Component, Log) {
     let (logger, log) = Logger::memory(true);
-    let instance = Instance::new(REFERENCE_RRPR_TOML, logger).expect("reference model");
+    let instance = Instance::new(&ModelSource::toml(REFERENCE_RRPR_TOML), logger).expect("reference model");
     (into_component(instance), log)
 }
 
@@ -338,7 +338,7 @@ fn do_step_allocates_nothing_and_an_instance_is_small() {
     // Heap owned by an instance of the reference model (logger without debug logging).
     let before = counting::LIVE_BYTES.with(|b| b.get());
     let (logger, _log) = Logger::memory(false);
-    let c = into_component(Instance::new(REFERENCE_RRPR_TOML, logger).expect("reference model"));
+    let c = into_component(Instance::new(&ModelSource::toml(REFERENCE_RRPR_TOML), logger).expect("reference model"));
     let heap = counting::LIVE_BYTES.with(|b| b.get()) - before;
     assert!(heap > 0 && heap < 64 * 1024, "an instance owns {heap} bytes");
     initialize(c);

@@ -1,14 +1,43 @@
-//! Joints: Denavit–Hartenberg row, drive, friction.
+//! Joints: placement and motion, drive, friction; the Denavit–Hartenberg row
+//! as one way of writing a placement.
 
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 
 /// Kind of a joint (study section 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointKind {
-    /// Rotation about z_{i−1}; the joint variable enters θ_i = q_i + θ0_i.
+    /// Rotation about the z axis of the joint frame by q_i + offset.
     Revolute,
-    /// Translation along z_{i−1}; the joint variable enters d_i = q_i + d0_i.
+    /// Translation along the z axis of the joint frame by q_i + offset.
     Prismatic,
+}
+
+/// A constant rigid placement of a frame in its parent frame:
+/// x_parent = rotation · x_child + translation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    /// Axes of the child frame resolved in the parent frame (orthonormal,
+    /// right-handed).
+    pub rotation: Mat3,
+    /// Origin of the child frame in the parent frame, m.
+    pub translation: Vec3,
+}
+
+impl Placement {
+    /// The identity placement.
+    pub fn identity() -> Placement {
+        Placement { rotation: Mat3::identity(), translation: Vec3::zeros() }
+    }
+
+    /// `self · other`: `other` given in the child frame of `self`.
+    pub fn then(&self, other: &Placement) -> Placement {
+        Placement { rotation: self.rotation * other.rotation, translation: self.translation + self.rotation * other.translation }
+    }
+
+    /// A point of the child frame resolved in the parent frame.
+    pub fn apply(&self, x: &Vec3) -> Vec3 {
+        self.rotation * x + self.translation
+    }
 }
 
 /// One row of standard (distal) Denavit–Hartenberg parameters:
@@ -77,7 +106,8 @@ pub enum ContactGeometry {
     /// Revolute joint: pin of link i in a sleeve of link i−1 with radial
     /// bearings A, B and thrust bearing C (Fig. 7, eqs. 3.13–3.15).
     Bearings {
-        /// Reaction reference point, on the joint axis, in frame i−1, m.
+        /// Reaction reference point, on the joint axis, in the joint frame
+        /// ([`DhJoint`]: in frame i−1), m.
         reaction_point: Vec3,
         /// Distance l_A of bearing A below the reference point, m.
         l_a: f64,
@@ -93,13 +123,13 @@ pub enum ContactGeometry {
     /// Prismatic joint: slider of link i in a slideway of link i−1, contact
     /// at the eight corner points (Fig. 6, eq. 3.11).
     Slider {
-        /// Slider centre, in frame i, m.
+        /// Slider centre, a point of link i in its frame, m.
         centre: Vec3,
         /// Slider length a along the axis, m.
         a: f64,
-        /// Cross-section b along x of the joint frame, m.
+        /// Cross-section b along x of link i's frame, m.
         b: f64,
-        /// Cross-section c along y of the joint frame, m.
+        /// Cross-section c along y of link i's frame, m.
         c: f64,
     },
 }
@@ -113,10 +143,44 @@ pub struct JointFriction {
     pub geometry: ContactGeometry,
 }
 
-/// A joint of the chain: joint i connects link i−1 to link i and moves about
-/// or along z_{i−1}.
+/// A joint of the chain: joint i connects link i−1 to link i.
+///
+/// Its joint frame sits at a constant [`Placement`] in the frame of link
+/// i−1 (frame 0 for joint 1); link i's frame is the joint frame turned by
+/// q_i + `offset` about its z axis (revolute) or moved by q_i + `offset`
+/// along it (prismatic). Every model source (Denavit–Hartenberg rows, URDF)
+/// is written in this form when the model is built, so that every algorithm
+/// has one code path. Link i's frame is also the frame in which its inertia
+/// is given and its joint reactions are resolved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Joint {
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Placement of the joint frame in the frame of link i−1.
+    pub placement: Placement,
+    /// Constant part of the motion: θ0 of a Denavit–Hartenberg revolute
+    /// joint, d0 of a prismatic one, 0 for URDF joints; rad or m.
+    pub offset: f64,
+    /// Rigid or flexible drive.
+    pub drive: Drive,
+    /// Dry friction, if modelled. The bearing reference point lies on the
+    /// joint axis (x = y = 0 of the joint frame); the slider centre is a
+    /// point of link i, in its frame.
+    pub friction: Option<JointFriction>,
+    /// Axes of link i's frame resolved in the frame the user described link
+    /// i in: identity for Denavit–Hartenberg joints and for URDF joints whose
+    /// axis is +z; for another URDF axis, the rotation that took z to it.
+    /// Reported reactions are turned by it into the user's frame.
+    pub reported_axes: Mat3,
+}
+
+/// A joint as a Denavit–Hartenberg model file writes it: its row, its drive
+/// and its friction with the contact geometry in the study's frames (the
+/// bearing reference point in frame i−1, the slider centre in frame i).
+/// [`Model::from_dh`](crate::model::Model::from_dh) converts a chain of them
+/// into [`Joint`]s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DhJoint {
     /// Revolute or prismatic.
     pub kind: JointKind,
     /// Denavit–Hartenberg row with the constant offsets.

@@ -1,7 +1,7 @@
 //! The immutable description of a manipulator: the chain, its drives, its
 //! friction and the integrator settings.
 
-use super::{ContactGeometry, Drive, Joint, JointKind, Link, Parameter};
+use super::{ContactGeometry, Drive, Joint, JointKind, Link, Parameter, Placement};
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
 
@@ -84,14 +84,20 @@ impl Default for IntegratorSettings {
 ///
 /// Joint i (0-based index i−1 in the arrays) connects link i−1 to link i;
 /// link 0 is the fixed base. The model is immutable while algorithms run:
-/// all workspace lives in [`crate::Data`].
+/// all workspace lives in [`crate::Data`]. Build it from a model file
+/// ([`Model::from_file`]: Denavit–Hartenberg rows or a URDF) or from
+/// Denavit–Hartenberg joints ([`Model::from_dh`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
     /// A name for logs and the FMU.
     pub name: String,
     /// Joints 1…n in chain order.
     pub joints: Vec<Joint>,
-    /// Links 1…n in chain order; link i is moved by joint i.
+    /// The names the model source gives the joints (URDF joint names), in
+    /// chain order; `None` for Denavit–Hartenberg rows.
+    pub joint_names: Vec<Option<String>>,
+    /// Links 1…n in chain order; link i is moved by joint i, its inertial
+    /// data are in link i's frame (see [`Joint`]).
     pub links: Vec<Link>,
     /// Gravity vector in the base frame 0, m/s².
     pub gravity: Vec3,
@@ -99,6 +105,10 @@ pub struct Model {
     pub end_point: Vec3,
     /// Stepper settings.
     pub integrator: IntegratorSettings,
+    /// What the model source accepted but a user should know (a URDF
+    /// inertia that violates the triangle inequality, links lumped into the
+    /// chain); hosts log them when the model is loaded.
+    pub warnings: Vec<String>,
 }
 
 fn invalid(field: impl Into<String>, value: f64, reason: impl Into<String>) -> ModelError {
@@ -215,7 +225,7 @@ pub(crate) fn number(x: f64) -> String {
     }
 }
 
-fn check_vec(field: &str, v: &Vec3, range: Range) -> Result<(), ModelError> {
+pub(super) fn check_vec(field: &str, v: &Vec3, range: Range) -> Result<(), ModelError> {
     for (k, x) in v.iter().enumerate() {
         check_value(&format!("{field}[{}]", k + 1), *x, range)?;
     }
@@ -230,6 +240,8 @@ impl Model {
 
     /// Checks every parameter and every relation between parameters.
     /// Errors name the field (1-based joint numbers, as in the model file).
+    /// The triangle inequality of the principal moments is the model
+    /// source's to check (a DH file refuses a violation, a URDF warns).
     pub fn validate(&self) -> Result<(), ModelError> {
         let n = self.joints.len();
         if n == 0 || n > MAX_JOINTS {
@@ -238,17 +250,27 @@ impl Model {
                 reason: format!("the chain has {n} joints; 1 to {MAX_JOINTS} are supported"),
             });
         }
-        if self.links.len() != n {
+        if self.links.len() != n || self.joint_names.len() != n {
             return Err(ModelError::Invalid {
                 field: "link".into(),
-                reason: format!("{} links for {n} joints", self.links.len()),
+                reason: format!("{} links and {} joint names for {n} joints", self.links.len(), self.joint_names.len()),
             });
         }
         check_vec("gravity", &self.gravity, Range::GRAVITY)?;
         check_vec("end_point", &self.end_point, Range::GEOMETRY)?;
         for (i, (joint, link)) in self.joints.iter().zip(&self.links).enumerate() {
             validate_joint(i + 1, joint)?;
-            validate_link(i + 1, link)?;
+            validate_link(i + 1, link, false)?;
+        }
+        // A flexible joint's equation of motion needs mass beyond it.
+        for (i, joint) in self.joints.iter().enumerate() {
+            if joint.drive.is_flexible() && self.links[i..].iter().all(|l| l.mass == 0.0) {
+                let name = self.joint_names[i].as_ref().map_or(String::new(), |s| format!(" (`{s}`)"));
+                return Err(ModelError::Invalid {
+                    field: format!("joint[{}]{name}.drive", i + 1),
+                    reason: "a flexible drive needs mass in the chain beyond the joint; every link from it to the tip is massless".into(),
+                });
+            }
         }
         validate_integrator(&self.integrator)
     }
@@ -260,12 +282,29 @@ const BEARING_SPAN: Range = Range::closed(1e-3, 200.0);
 /// b + c of a slider, m: at least 1 mm, for the same reason in (3.11).
 const SLIDER_SECTION: Range = Range::closed(1e-3, 200.0);
 
+/// Checks that a placement is finite, its origin within the geometry range
+/// and its rotation a proper rotation to 1e-9.
+fn validate_placement(field: &str, p: &Placement) -> Result<(), ModelError> {
+    check_vec(&format!("{field}.translation"), &p.translation, Range::GEOMETRY)?;
+    let r = &p.rotation;
+    for x in r.iter() {
+        check_value(&format!("{field}.rotation"), *x, Range::symmetric(1.0 + 1e-9))?;
+    }
+    let defect = (r.transpose() * r - Mat3::identity()).amax();
+    if defect > 1e-9 || r.determinant() < 0.0 {
+        return Err(ModelError::Invalid {
+            field: format!("{field}.rotation"),
+            reason: format!("is not a proper rotation (|RᵀR − 1| = {defect:.1e}, det = {:.6})", r.determinant()),
+        });
+    }
+    Ok(())
+}
+
 fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     let f = |name: &str| format!("joint[{number}].{name}");
-    check_value(&f("theta"), joint.dh.theta, Range::GEOMETRY)?;
-    check_value(&f("d"), joint.dh.d, Range::GEOMETRY)?;
-    check_value(&f("a"), joint.dh.a, Range::GEOMETRY)?;
-    check_value(&f("alpha"), joint.dh.alpha, Range::GEOMETRY)?;
+    validate_placement(&f("placement"), &joint.placement)?;
+    check_value(&f("offset"), joint.offset, Range::GEOMETRY)?;
+    validate_placement(&f("reported_axes"), &Placement { rotation: joint.reported_axes, translation: Vec3::zeros() })?;
     if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
         check_value(&f("drive.k"), stiffness, Parameter::Stiffness.range())?;
         check_value(&f("drive.h"), damping, Parameter::Damping.range())?;
@@ -289,7 +328,7 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
             if reaction_point.x.abs() > 1e-12 || reaction_point.y.abs() > 1e-12 {
                 return Err(ModelError::Invalid {
                     field: f("bearings.reaction_point"),
-                    reason: "must lie on the joint axis z (x = y = 0 in frame i-1)".into(),
+                    reason: "must lie on the joint axis (x = y = 0 in the joint frame)".into(),
                 });
             }
             check_value(&f("bearings.l_a"), l_a, Parameter::LengthA.range())?;
@@ -322,14 +361,27 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     Ok(())
 }
 
-fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
+/// Checks a link's inertial data. A link of mass 0 with a zero inertia
+/// tensor is massless (a URDF link without `<inertial>`); every other link
+/// has a mass that is positive (or 0 in a URDF) and a positive definite
+/// tensor. `strict` (a Denavit–Hartenberg file) also requires a positive
+/// mass and principal moments that satisfy the triangle inequality (a URDF
+/// reader accepts a violation with a warning).
+pub(super) fn validate_link(number: usize, link: &Link, strict: bool) -> Result<(), ModelError> {
     let f = |name: &str| format!("joint[{number}].link.{name}");
-    check_value(&f("mass"), link.mass, Parameter::Mass.range())?;
-    check_vec(&f("com"), &link.com, Range::GEOMETRY)?;
     let i = &link.inertia;
+    // Mass 0: a massless link, or (URDF) one with rotational inertia only;
+    // a Denavit–Hartenberg file (`strict`) gives every link a mass.
+    if link.mass != 0.0 || strict {
+        check_value(&f("mass"), link.mass, Parameter::Mass.range())?;
+    }
+    check_vec(&f("com"), &link.com, Range::GEOMETRY)?;
     const ENTRIES: [&str; 9] = ["xx", "xy", "xz", "xy", "yy", "yz", "xz", "yz", "zz"];
     for (name, x) in ENTRIES.iter().zip(i.iter()) {
         check_value(&f(&format!("inertia.{name}")), *x, Range::INERTIA)?;
+    }
+    if link.mass == 0.0 && i.amax() == 0.0 {
+        return Ok(());
     }
     if (i - i.transpose()).amax() > 1e-12 * i.amax().max(1e-300) {
         return Err(ModelError::Invalid { field: f("inertia"), reason: "tensor is not symmetric".into() });
@@ -343,7 +395,7 @@ fn validate_link(number: usize, link: &Link) -> Result<(), ModelError> {
         });
     }
     // A rigid body's principal moments satisfy I1 + I2 ≥ I3 for every ordering.
-    if eig.sum() - 2.0 * max < -1e-12 * max {
+    if strict && eig.sum() - 2.0 * max < -1e-12 * max {
         return Err(ModelError::Invalid {
             field: f("inertia"),
             reason: format!(

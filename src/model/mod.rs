@@ -1,5 +1,6 @@
 //! The manipulator model: chain, drives, friction, and its model file.
 
+mod dh;
 mod file;
 mod joint;
 mod link;
@@ -7,9 +8,12 @@ mod manipulator;
 mod parameter;
 mod presets;
 pub mod urdf;
+mod urdf_model;
 
-pub use file::REFERENCE_RRPR_TOML;
-pub use joint::{ContactGeometry, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind};
+pub use file::{with_urdf_file_name, ModelSource, REFERENCE_RRPR_TOML};
+pub use dh::trailing_placement;
+pub use urdf_model::{axis_alignment, JointExtras, UrdfModelSpec};
+pub use joint::{ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind, Placement};
 pub use link::Link;
 pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS};
 pub(crate) use manipulator::number;

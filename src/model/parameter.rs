@@ -177,7 +177,8 @@ impl Model {
 /// Where parameter `p` of joint `j` and the link it moves is stored.
 fn slot<'a>(j: &'a mut Joint, link: &'a mut Link, p: Parameter) -> Option<&'a mut f64> {
     if p == Parameter::Mass {
-        return Some(&mut link.mass);
+        // A massless link (a URDF link without mass) has no tunable mass.
+        return (link.mass > 0.0).then_some(&mut link.mass);
     }
     if let Drive::Flexible { stiffness, damping, clearance } = &mut j.drive {
         match p {

@@ -1,7 +1,7 @@
 //! Named models built in code.
 
 use super::{
-    ContactGeometry, DhRow, Drive, FrictionCoefficients, IntegratorSettings, Joint, JointFriction, JointKind, Link,
+    ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, IntegratorSettings, JointFriction, JointKind, Link,
     Model,
 };
 use crate::math::{Mat3, Vec3};
@@ -34,7 +34,7 @@ impl Model {
                 },
                 JointKind::Prismatic => ContactGeometry::Slider { centre: Vec3::new(0.0, 0.0, -0.1), a: 0.4, b: 0.1, c: 0.1 },
             };
-            joints.push(Joint {
+            joints.push(DhJoint {
                 kind,
                 dh: DhRow {
                     theta: 0.3 * i as f64,
@@ -59,14 +59,15 @@ impl Model {
                 inertia: Mat3::from_diagonal(&Vec3::new(0.02, 0.025, 0.03)) * mass,
             });
         }
-        Model {
-            name: format!("synthetic_chain_{n}"),
-            joints,
-            links,
-            gravity: Vec3::new(0.0, 0.0, -9.81),
-            end_point: Vec3::new(0.1, 0.0, 0.0),
-            integrator: IntegratorSettings::default(),
-        }
+        Model::from_dh(
+            format!("synthetic_chain_{n}"),
+            &joints,
+            &links,
+            Vec3::new(0.0, 0.0, -9.81),
+            Vec3::new(0.1, 0.0, 0.0),
+            IntegratorSettings::default(),
+        )
+        .expect("the synthetic chain is valid")
     }
 }
 

@@ -96,26 +96,26 @@ pub(crate) fn optimal_factor(ratio: f64) -> f64 {
 mod tests {
     use super::error_ratio;
     use crate::math::{Mat3, Vec3};
-    use crate::model::{DhRow, Drive, IntegratorSettings, Joint, JointKind, Link, Model};
+    use crate::model::{DhJoint, DhRow, Drive, IntegratorSettings, JointKind, Link, Model};
     use crate::stepper::{DriveInputs, InitialState, Simulator};
 
     /// A block of mass `mass` on a drive spring `stiffness` along z0, without
     /// friction and gravity: q(t) = A·cos(ωt + φ) about q* = 0, ω² = k/m.
     fn oscillator(mass: f64, stiffness: f64, h: f64) -> Model {
-        let model = Model {
-            name: "oscillator".into(),
-            joints: vec![Joint {
+        let model = Model::from_dh(
+            "oscillator",
+            &[DhJoint {
                 kind: JointKind::Prismatic,
                 dh: DhRow { theta: 0.0, d: 0.0, a: 0.0, alpha: 0.0 },
                 drive: Drive::Flexible { stiffness, damping: 0.0, clearance: 0.0 },
                 friction: None,
             }],
-            links: vec![Link { mass, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
-            gravity: Vec3::zeros(),
-            end_point: Vec3::zeros(),
-            // One fixed sub-step of h per interval of h.
-            integrator: IntegratorSettings { h_min: h, h_max: h, tolerance: 1e-13, ..IntegratorSettings::default() },
-        };
+            &[Link { mass, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
+            Vec3::zeros(),
+            Vec3::zeros(),
+            IntegratorSettings { h_min: h, h_max: h, tolerance: 1e-13, ..IntegratorSettings::default() },
+        )
+        .expect("the model is valid");
         model.validate().expect("oscillator is valid");
         model
     }

@@ -417,7 +417,7 @@ impl NewmarkSolver {
             self.iteration_matrix[a * nf + a] +=
                 slip_friction_velocity_slope(friction.coefficients, st.lever_load[s], st.qd[s], d) * gamma * h;
             let (f0, n0) = (data.reaction_force[s], data.reaction_moment[s]);
-            let rt = data.joint_rotation[s].transpose();
+            let rt = data.rotation[s + 1].transpose();
             let p = reaction_point(model, data, s);
             for (b, &j) in self.free.iter().enumerate() {
                 // Change of joint s's reaction (joint frame, about its

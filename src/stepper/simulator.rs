@@ -457,8 +457,12 @@ impl Simulator {
     pub(crate) fn update_reported(&mut self) {
         self.update_energies();
         joint_reactions(&self.model, &mut self.data);
-        self.state.reaction_force.copy_from_slice(&self.data.reaction_force);
-        self.state.reaction_moment.copy_from_slice(&self.data.reaction_moment);
+        // Reported in the frame the user described each link in (URDF: the
+        // child link frame); the identity for Denavit–Hartenberg joints.
+        for (i, joint) in self.model.joints.iter().enumerate() {
+            self.state.reaction_force[i] = joint.reported_axes * self.data.reaction_force[i];
+            self.state.reaction_moment[i] = joint.reported_axes * self.data.reaction_moment[i];
+        }
         let model = &self.model;
         let st = &mut self.state;
         st.end_point = end_point(model, &self.data);

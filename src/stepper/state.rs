@@ -51,9 +51,10 @@ pub struct State {
     /// |q* − q| − Δ of a flexible drive with clearance Δ > 0: it changes sign
     /// where δ of (2.1) switches; +∞ for the other joints.
     pub clearance_margin: Vec<f64>,
-    /// Joint force at the reaction reference point, joint frame, N.
+    /// Joint force at the reaction reference point, in link i's frame as the
+    /// model source describes it (see [`Joint::reported_axes`](crate::model::Joint::reported_axes)), N.
     pub reaction_force: Vec<Vec3>,
-    /// Joint moment about the reaction reference point, joint frame, N·m.
+    /// Joint moment about the reaction reference point, in the same frame, N·m.
     pub reaction_moment: Vec<Vec3>,
     /// Number of stiction phases each joint has entered since initialization
     /// (a joint that starts stuck counts one).

@@ -4,7 +4,7 @@
 
 use stick_slip_manipulator::math::{Mat3, Vec3};
 use stick_slip_manipulator::model::{
-    ContactGeometry, DhRow, Drive, FrictionCoefficients, IntegratorSettings, Joint, JointFriction, JointKind, Link,
+    ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, IntegratorSettings, JointFriction, JointKind, Link,
 };
 use stick_slip_manipulator::Model;
 
@@ -52,6 +52,21 @@ pub fn random_inertia(rng: &mut Rng, mass: f64) -> Mat3 {
 /// A random chain of `n` links with mixed revolute and prismatic joints,
 /// mixed drives, and friction geometry on every joint.
 pub fn random_chain(n: usize, seed: u64) -> Model {
+    let (joints, links) = random_dh_chain(n, seed);
+    Model::from_dh(
+        format!("random_{n}_{seed}"),
+        &joints,
+        &links,
+        Vec3::new(0.3, -0.2, -9.81),
+        Vec3::new(0.1, 0.0, 0.05),
+        IntegratorSettings::default(),
+    )
+    .expect("random chain is valid")
+}
+
+/// The Denavit–Hartenberg joints and links (in the study's frames i) of
+/// [`random_chain`].
+pub fn random_dh_chain(n: usize, seed: u64) -> (Vec<DhJoint>, Vec<Link>) {
     let mut rng = Rng::new(seed);
     let mut joints = Vec::new();
     let mut links = Vec::new();
@@ -79,7 +94,7 @@ pub fn random_chain(n: usize, seed: u64) -> Model {
             },
         };
         let mu = rng.range(0.05, 0.3);
-        joints.push(Joint {
+        joints.push(DhJoint {
             kind,
             dh: DhRow {
                 theta: rng.range(-3.0, 3.0),
@@ -96,16 +111,7 @@ pub fn random_chain(n: usize, seed: u64) -> Model {
         let mass = rng.range(0.5, 20.0);
         links.push(Link { mass, com: rng.vec3(0.3), inertia: random_inertia(&mut rng, mass) });
     }
-    let model = Model {
-        name: format!("random_{n}_{seed}"),
-        joints,
-        links,
-        gravity: Vec3::new(0.3, -0.2, -9.81),
-        end_point: Vec3::new(0.1, 0.0, 0.05),
-        integrator: IntegratorSettings::default(),
-    };
-    model.validate().expect("random chain is valid");
-    model
+    (joints, links)
 }
 
 /// One prismatic joint along z0 carrying a block of mass `mass` whose centre
@@ -114,9 +120,9 @@ pub fn random_chain(n: usize, seed: u64) -> Model {
 /// its component along −z0 is g·sin(tilt), along −y0 g·cos(tilt).
 pub fn sliding_block(mass: f64, stiffness: f64, damping: f64, friction: FrictionCoefficients, tilt: f64) -> Model {
     let g = 9.81;
-    let model = Model {
-        name: "sliding_block".into(),
-        joints: vec![Joint {
+    let model = Model::from_dh(
+        "sliding_block",
+        &[DhJoint {
             kind: JointKind::Prismatic,
             dh: DhRow { theta: 0.0, d: 0.0, a: 0.0, alpha: 0.0 },
             drive: Drive::Flexible { stiffness, damping, clearance: 0.0 },
@@ -125,11 +131,12 @@ pub fn sliding_block(mass: f64, stiffness: f64, damping: f64, friction: Friction
                 geometry: ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.07 },
             }),
         }],
-        links: vec![Link { mass, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
-        gravity: Vec3::new(0.0, -g * tilt.cos(), -g * tilt.sin()),
-        end_point: Vec3::zeros(),
-        integrator: IntegratorSettings::default(),
-    };
+        &[Link { mass, com: Vec3::zeros(), inertia: Mat3::from_diagonal(&Vec3::new(0.01, 0.01, 0.01)) }],
+        Vec3::new(0.0, -g * tilt.cos(), -g * tilt.sin()),
+        Vec3::zeros(),
+        IntegratorSettings::default(),
+    )
+    .expect("the model is valid");
     model.validate().expect("sliding block is valid");
     model
 }

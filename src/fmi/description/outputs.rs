@@ -79,6 +79,14 @@ impl Output {
     }
 }
 
+/// The frame the reactions of joint `j` are resolved in, in words.
+fn reaction_frame(model: &Model, j: usize) -> String {
+    match &model.joint_names[j] {
+        Some(name) => format!("in the URDF child link frame of joint `{name}`"),
+        None => "joint frame (z = joint axis)".into(),
+    }
+}
+
 const fn output(
     name: &'static str,
     arity: Arity,
@@ -152,14 +160,14 @@ pub const OUTPUTS: &[OutputKind] = &[
         "f",
         Arity::PerJointVector,
         OutputUnit::Fixed("N"),
-        |_, j, k| format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+        |m, j, k| format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j)),
         |s, j, k| s.reaction_force[j][k],
     ),
     output(
         "n",
         Arity::PerJointVector,
         OutputUnit::Fixed("N.m"),
-        |_, j, k| format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, joint frame (z = joint axis)", k + 1, j + 1, j + 1),
+        |m, j, k| format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j)),
         |s, j, k| s.reaction_moment[j][k],
     ),
     output(

@@ -335,7 +335,10 @@ pub(super) fn joint_label(model: &Model, j: usize) -> String {
         JointKind::Prismatic => "prismatic",
     };
     let drive = if joint.drive.is_flexible() { "flexible" } else { "rigid" };
-    format!("joint {} ({kind}, {drive} drive)", j + 1)
+    match &model.joint_names[j] {
+        Some(name) => format!("joint {} (`{name}`, {kind}, {drive} drive)", j + 1),
+        None => format!("joint {} ({kind}, {drive} drive)", j + 1),
+    }
 }
 
 fn inputs(b: &mut Builder, model: &Model) {
