@@ -89,5 +89,34 @@ fn chain_growth(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, reference_manipulator, chain_growth);
+/// `model` with fixed sub-steps of 2e-6 s, so that an interval is 500 of them.
+fn fixed_substeps(mut model: Model) -> Model {
+    (model.integrator.h_min, model.integrator.h_max) = (2e-6, 2e-6);
+    model
+}
+
+fn model_file(path: &str) -> Model {
+    Model::from_file(format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+}
+
+/// General placements (a URDF) against Denavit–Hartenberg rows on the same
+/// arm, and a 7-joint URDF arm against the 4-joint reference, in one run.
+fn placements(c: &mut Criterion) {
+    let mut group = c.benchmark_group("placements_interval_1ms");
+    group.throughput(Throughput::Elements(500));
+    let drive = reference_drive();
+    for (name, model) in [
+        ("reference_dh", Model::reference_rrpr()),
+        ("reference_urdf", model_file("models/urdf/reference_rrpr/reference_rrpr.toml")),
+    ] {
+        let mut bench = prepare(fixed_substeps(model), &drive, 0.5);
+        group.bench_function(BenchmarkId::from_parameter(name), |b| b.iter(|| bench.interval()));
+    }
+    let ramp = ramp_drive();
+    let mut bench = prepare(fixed_substeps(model_file("models/urdf/kuka_iiwa/kuka_iiwa.toml")), &ramp, 0.5);
+    group.bench_function(BenchmarkId::from_parameter("kuka_iiwa_7"), |b| b.iter(|| bench.interval()));
+    group.finish();
+}
+
+criterion_group!(benches, reference_manipulator, chain_growth, placements);
 criterion_main!(benches);

@@ -45,6 +45,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Some(p) => Model::from_file(p)?,
         None => Model::reference_rrpr(),
     };
+    for warning in &model.warnings {
+        eprintln!("simulate_reference: warning: {warning}");
+    }
     // --h-max alone below the model's h_min means fixed sub-steps of that length.
     if let Some(h) = h_max {
         model.integrator.h_max = h;

@@ -1,0 +1,90 @@
+//! The model's rigid-body dynamics at given states, for checking a model
+//! against another rigid-body library (the URDF tests compare it with
+//! Pinocchio) and for users who want the joint loads of a motion.
+//!
+//! Usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv
+//!
+//! IN.csv has a header and the columns q[1..n], qd[1..n], qdd[1..n] (any
+//! order, named so). For each row OUT.csv has: `tau[i]` (the generalized
+//! force M(q)·q̈ + bias(q, q̇) including gravity, N·m or N), `f[i,k]` and
+//! `n[i,k]` (force and moment that link i−1 exerts on link i at the joint's
+//! origin, resolved in link i's frame as the model source describes it: the
+//! URDF child link frame), `x_E[k]` (end point in the base frame) and
+//! `M[i,j]` (the joint-space mass matrix), all at full precision.
+
+use std::io::Write;
+use stick_slip_manipulator::algorithms::crba::crba;
+use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
+use stick_slip_manipulator::algorithms::rnea::rnea;
+use stick_slip_manipulator::{Data, Model};
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("inverse_dynamics: {e}");
+        std::process::exit(2);
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
+    let (mut model_path, mut states, mut out) = (None, None, None);
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().ok_or_else(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--model" => model_path = Some(value()?),
+            "--states" => states = Some(value()?),
+            "--out" => out = Some(value()?),
+            _ => return Err(format!("unknown argument {a} (usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv)").into()),
+        }
+    }
+    let usage = "usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv";
+    let model = Model::from_file(model_path.ok_or(usage)?)?;
+    for warning in &model.warnings {
+        eprintln!("inverse_dynamics: warning: {warning}");
+    }
+    let states = states.ok_or(usage)?;
+    let text = std::fs::read_to_string(&states).map_err(|e| format!("cannot read {states}: {e}"))?;
+    let n = model.nq();
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let header: Vec<&str> = lines.next().ok_or("the states file is empty")?.split(',').map(str::trim).collect();
+    let column = |name: String| header.iter().position(|h| *h == name).ok_or(format!("{states}: no column `{name}`"));
+    let mut columns = Vec::with_capacity(3 * n);
+    for base in ["q", "qd", "qdd"] {
+        for i in 1..=n {
+            columns.push(column(format!("{base}[{i}]"))?);
+        }
+    }
+    let mut data = Data::new(&model);
+    let mut w = std::io::BufWriter::new(std::fs::File::create(out.ok_or(usage)?)?);
+    let mut names: Vec<String> = (1..=n).map(|i| format!("tau[{i}]")).collect();
+    for i in 1..=n {
+        names.extend((1..=3).map(|k| format!("f[{i},{k}]")));
+        names.extend((1..=3).map(|k| format!("n[{i},{k}]")));
+    }
+    names.extend((1..=3).map(|k| format!("x_E[{k}]")));
+    for i in 1..=n {
+        names.extend((1..=n).map(|j| format!("M[{i},{j}]")));
+    }
+    writeln!(w, "{}", names.join(","))?;
+    for (row, line) in lines.enumerate() {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let value = |c: usize| -> Result<f64, String> {
+            let x: f64 = cells.get(c).ok_or(format!("{states}: row {} is short", row + 1))?.parse().map_err(|e| format!("{states}: row {}: {e}", row + 1))?;
+            x.is_finite().then_some(x).ok_or(format!("{states}: row {}: not a finite number", row + 1))
+        };
+        let v = columns.iter().map(|&c| value(c)).collect::<Result<Vec<f64>, _>>()?;
+        let (q, qd, qdd) = (&v[..n], &v[n..2 * n], &v[2 * n..]);
+        forward_kinematics(&model, &mut data, q);
+        rnea(&model, &mut data, q, qd, qdd);
+        crba(&model, &mut data);
+        let mut out: Vec<f64> = data.tau.clone();
+        for (i, joint) in model.joints.iter().enumerate() {
+            out.extend((joint.reported_axes * data.force[i]).iter());
+            out.extend((joint.reported_axes * data.moment[i]).iter());
+        }
+        out.extend(end_point(&model, &data).iter());
+        out.extend(data.mass_matrix.transpose().iter());
+        writeln!(w, "{}", out.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(","))?;
+    }
+    Ok(())
+}
