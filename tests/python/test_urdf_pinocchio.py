@@ -37,6 +37,7 @@ through joint j, on the subtree of joint j, gravity included, in joint j's frame
 from __future__ import annotations
 
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -151,6 +152,7 @@ def run_fmu(fmu, motion_path, parameters: dict) -> dict:
         slave.terminate()
     finally:
         slave.freeInstance()
+        shutil.rmtree(unzipped, ignore_errors=True)
     data = np.array(rows, dtype=np.float64)
     out = {name: data[:, c] for c, name in enumerate(names)}
     out["n_joints"] = n
