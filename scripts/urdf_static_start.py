@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Start values that put an arm's flexible joints in static equilibrium at a motion's start.
+
+Usage:  python scripts/urdf_static_start.py --model ARM.toml --fmu ARM.fmu --motion MOTION.toml
+
+Without start values the FMU starts every flexible joint at q = q* with its drive spring
+relaxed (`use_start_values = false`); an arm whose start pose loads a joint with gravity
+then drops into its spring at t = 0 and rings at the drive's natural frequency, which
+would be mistaken for the motion's own dynamics. This script computes, for the motion
+file's q*(0), the coordinates where each flexible drive's spring holds the gravity load,
+k_i (q*_i - q_i) = tau_i(q) (tau = the generalized gravity force at rest, from the
+engine's own `inverse_dynamics` binary on the model file), by fixed-point iteration
+(converged to 1e-15 rad in a few rounds: the lag is ~1e-3 rad), and prints them as
+`stickslip simulate` options, one per line:
+
+    --set use_start_values=true
+    --set q_start[2]=0.60054...
+
+(qd_start stays 0: at rest, stuck where friction holds the joint.) Clearance is taken
+into account: the spring of a drive with clearance Delta_i transmits k_i (|q* - q| - Delta_i), so
+the lag grows by Delta_i (a joint without gravity load, |tau_i| < 1e-9, starts at q* within it).
+"""
+
+import argparse
+import csv
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "python"))
+from stickslip.motion import load_motion_for  # noqa: E402
+
+
+def fmu_parameters(fmu):
+    """{name: start value} of the FMU's real parameters, and its number of joints."""
+    with zipfile.ZipFile(fmu) as z:
+        root = ElementTree.fromstring(z.read("modelDescription.xml"))
+    values, n = {}, 0
+    for v in root.iter("ScalarVariable"):
+        name = v.get("name", "")
+        if name.startswith("q_star["):
+            n += 1
+        real = v.find("Real")
+        if real is not None and real.get("start") is not None:
+            values[name] = float(real.get("start"))
+    return values, n
+
+
+def gravity_torques(binary, model, q):
+    """tau(q) at rest, from `inverse_dynamics`."""
+    n = len(q)
+    with tempfile.TemporaryDirectory(prefix="static_start_") as d:
+        states, out = Path(d) / "states.csv", Path(d) / "tau.csv"
+        header = [f"{b}[{i}]" for b in ("q", "qd", "qdd") for i in range(1, n + 1)]
+        states.write_text(",".join(header) + "\n" + ",".join(repr(x) for x in list(q) + [0.0] * 2 * n) + "\n")
+        subprocess.run([str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
+                       check=True, stderr=subprocess.DEVNULL)
+        with open(out, newline="") as f:
+            row = next(csv.DictReader(f))
+    return [float(row[f"tau[{i}]"]) for i in range(1, n + 1)]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", required=True, type=Path, help="the arm's model file")
+    ap.add_argument("--fmu", required=True, type=Path, help="the arm's FMU (drive parameters, number of joints)")
+    ap.add_argument("--motion", required=True, type=Path, help="the motion file whose q*(0) is the start pose")
+    ap.add_argument("--binary", type=Path, default=ROOT / "target" / "release" / "inverse_dynamics")
+    args = ap.parse_args(argv)
+
+    params, n = fmu_parameters(args.fmu)
+    flexible = [i for i in range(1, n + 1) if f"k[{i}]" in params]
+    from fmpy import read_model_description
+
+    q_star = list(load_motion_for(args.motion, read_model_description(str(args.fmu)))(0.0)[0])
+    q = list(q_star)
+    for _ in range(50):
+        tau = gravity_torques(args.binary, args.model, q)
+        new = list(q_star)
+        for i in flexible:
+            lag = tau[i - 1] / params[f"k[{i}]"]
+            gap = params.get(f"Delta[{i}]", 0.0)
+            # No load (a vertical axis): q = q* is an equilibrium inside the clearance.
+            side = 0.0 if abs(tau[i - 1]) < 1e-9 else gap if lag > 0 else -gap
+            new[i - 1] = q_star[i - 1] - (lag + side)
+        change = max(abs(a - b) for a, b in zip(new, q))
+        q = new
+        if change < 1e-15:
+            break
+    else:
+        raise SystemExit(f"urdf_static_start: no static equilibrium found for {args.model} (last change {change:.1e})")
+    print("--set use_start_values=true")
+    for i in flexible:
+        print(f"--set q_start[{i}]={q[i - 1]!r}")
+    lags = ", ".join(f"joint {i}: {q_star[i - 1] - q[i - 1]:.3e} rad" for i in flexible)
+    print(f"urdf_static_start: static lags q* - q at the start pose: {lags}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
