@@ -46,7 +46,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let text = std::fs::read_to_string(&states).map_err(|e| format!("cannot read {states}: {e}"))?;
     let n = model.nq();
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header: Vec<&str> = lines.next().ok_or("the states file is empty")?.split(',').map(str::trim).collect();
+    let header: Vec<&str> = lines.next().ok_or("the states file is empty")?.split(',').map(|s| s.trim().trim_matches('"')).collect();
     let column = |name: String| header.iter().position(|h| *h == name).ok_or(format!("{states}: no column `{name}`"));
     let mut columns = Vec::with_capacity(3 * n);
     for base in ["q", "qd", "qdd"] {
@@ -65,7 +65,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     for i in 1..=n {
         names.extend((1..=n).map(|j| format!("M[{i},{j}]")));
     }
-    writeln!(w, "{}", names.join(","))?;
+    // Quoted (RFC 4180): the names hold commas.
+    writeln!(w, "{}", names.iter().map(|s| format!("\"{s}\"")).collect::<Vec<_>>().join(","))?;
     for (row, line) in lines.enumerate() {
         let cells: Vec<&str> = line.split(',').map(str::trim).collect();
         let value = |c: usize| -> Result<f64, String> {
