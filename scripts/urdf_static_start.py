@@ -32,7 +32,7 @@ from xml.etree import ElementTree
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "python"))
-from stickslip.motion import load_motion_for  # noqa: E402
+from stickslip.motion import MotionError, load_motion_for  # noqa: E402
 
 
 def fmu_parameters(fmu):
@@ -57,8 +57,10 @@ def gravity_torques(binary, model, q):
         states, out = Path(d) / "states.csv", Path(d) / "tau.csv"
         header = [f"{b}[{i}]" for b in ("q", "qd", "qdd") for i in range(1, n + 1)]
         states.write_text(",".join(header) + "\n" + ",".join(repr(x) for x in list(q) + [0.0] * 2 * n) + "\n")
-        subprocess.run([str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
-                       check=True, stderr=subprocess.DEVNULL)
+        run = subprocess.run([str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
+                             stderr=subprocess.PIPE, text=True)
+        if run.returncode != 0:
+            raise SystemExit(f"urdf_static_start: {binary} failed (exit {run.returncode}): {run.stderr.strip()}")
         with open(out, newline="") as f:
             row = next(csv.DictReader(f))
     return [float(row[f"tau[{i}]"]) for i in range(1, n + 1)]
@@ -76,17 +78,21 @@ def main(argv=None):
     flexible = [i for i in range(1, n + 1) if f"k[{i}]" in params]
     from fmpy import read_model_description
 
-    q_star = list(load_motion_for(args.motion, read_model_description(str(args.fmu)))(0.0)[0])
+    try:
+        q_star = list(load_motion_for(args.motion, read_model_description(str(args.fmu)))(0.0)[0])
+    except MotionError as e:
+        print(f"urdf_static_start: {e}", file=sys.stderr)
+        return 2
     q = list(q_star)
     for _ in range(50):
         tau = gravity_torques(args.binary, args.model, q)
         new = list(q_star)
         for i in flexible:
+            if abs(tau[i - 1]) < 1e-9:
+                continue  # no load (a vertical axis): q = q* is an equilibrium, inside any clearance
             lag = tau[i - 1] / params[f"k[{i}]"]
             gap = params.get(f"Delta[{i}]", 0.0)
-            # No load (a vertical axis): q = q* is an equilibrium inside the clearance.
-            side = 0.0 if abs(tau[i - 1]) < 1e-9 else gap if lag > 0 else -gap
-            new[i - 1] = q_star[i - 1] - (lag + side)
+            new[i - 1] = q_star[i - 1] - (lag + (gap if lag > 0 else -gap))
         change = max(abs(a - b) for a, b in zip(new, q))
         q = new
         if change < 1e-15:
