@@ -7,9 +7,14 @@
 #      platforms: linux64, win64, darwin64; STICKSLIP_DARWIN64=0 leaves darwin64 out)
 #   3. stickslip simulate --out results/reference.csv  (the FMU through fmpy)
 #   4. python scripts/plot_reference.py results/reference.csv results/
-#   5. stickslip study --out results/study   (the source study's five cases, docs/study.md)
-#   6. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 500 samples)
-#   7. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
+#   5. the URDF example arms (docs/urdf.md): per arm (KUKA iiwa, xArm 6) its FMU
+#      (scripts/build_fmu.sh --model models/urdf/<arm>/<arm>.toml), a reference-like
+#      motion file (examples/motions/<arm>.toml) from a static-equilibrium start
+#      (scripts/urdf_static_start.py), CSV, plots and summary.json in results/<arm>/
+#      (scripts/plot_urdf_arm.py); URDF_ARMS="kuka_iiwa" runs one, "" none
+#   6. stickslip study --out results/study   (the source study's five cases, docs/study.md)
+#   7. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 500 samples)
+#   8. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
 # passed to `stickslip simulate` (e.g. --set mu_k[3]=0.1).
@@ -41,6 +46,46 @@ stickslip simulate --out "$CSV" "$@"
 
 banner "plot_reference.py"
 python scripts/plot_reference.py "$CSV" "$RESULTS_DIR"
+
+# The URDF example arms (issue 19, docs/urdf.md). Each step is checked explicitly, so
+# that a failed arm stops the main job with a message naming the arm and the step.
+# Measured: 18 s for both arms on 2 busy cores (per arm: build_fmu.sh 4 s with the
+# binaries of the reference FMU above, start values, a 2 s run in 0.3-0.5 s, plots).
+urdf_failed() {
+    echo "main.sh: URDF arm $1: $2 FAILED (exit $3); the output above says why" >&2
+    exit 1
+}
+urdf_arm() {  # name: models/urdf/<name>/<name>.toml driven by examples/motions/<name>.toml
+    local name=$1 started=$SECONDS
+    local model="models/urdf/$name/$name.toml" motion="examples/motions/$name.toml"
+    local fmu="$ROOT/target/fmu/$name.fmu" out="$RESULTS_DIR/$name"
+    local csv="$out/$name.csv"
+    banner "URDF arm $name: FMU, $motion from static equilibrium -> $out"
+    rm -rf "$out"
+    mkdir -p "$out" || urdf_failed "$name" "mkdir $out" $?
+    # The binaries are the ones just built: cargo and the cross-builds have nothing to do.
+    bash scripts/build_fmu.sh --model "$model" --out "$fmu" || urdf_failed "$name" "building its FMU ($model)" $?
+    local start
+    start=$(python scripts/urdf_static_start.py --model "$model" --fmu "$fmu" --motion "$motion") \
+        || urdf_failed "$name" "static start values (scripts/urdf_static_start.py)" $?
+    local args=() a b
+    while read -r a b; do [ -n "$a" ] && args+=("$a" "$b"); done <<<"$start"
+    [ "${#args[@]}" -ge 2 ] || urdf_failed "$name" "static start values (none printed)" 1
+    printf '%s\n' "stickslip simulate --fmu target/fmu/$name.fmu --motion $motion --out $name.csv ${args[*]}" \
+        >"$out/command.txt"
+    stickslip simulate --fmu "$fmu" --motion "$motion" --out "$csv" "${args[@]}" \
+        || urdf_failed "$name" "stickslip simulate --motion $motion" $?
+    [ -s "$csv" ] || urdf_failed "$name" "stickslip simulate (wrote no $csv)" 1
+    python scripts/plot_urdf_arm.py "$csv" "$out" --fmu "$fmu" --name "$name" --loads 1,2 \
+        --summary "$out/summary.json" || urdf_failed "$name" "plot_urdf_arm.py" $?
+    echo "main.sh: URDF arm $name: $((SECONDS - started)) s"
+}
+URDF_ARMS="${URDF_ARMS-kuka_iiwa xarm6}"
+urdf_started=$SECONDS
+for arm in $URDF_ARMS; do
+    urdf_arm "$arm"
+done
+[ -z "$URDF_ARMS" ] || echo "main.sh: URDF arms ($URDF_ARMS): $((SECONDS - urdf_started)) s"
 
 banner "stickslip study: the source study's five cases through the FMU -> $RESULTS_DIR/study"
 stickslip study --out "$RESULTS_DIR/study"
