@@ -19,6 +19,7 @@ from __future__ import annotations
 import atexit
 import csv
 import functools
+import hashlib
 import math
 import os
 import shutil
@@ -144,15 +145,22 @@ def model_description(path: str | None = None):
     return read_model_description(str(path or fmu_path()))
 
 
-@functools.lru_cache(maxsize=None)
 def unzip_dir(path: str | None = None) -> str:
-    """The FMU extracted once per process (removed at exit)."""
+    """The FMU extracted once per process (removed at exit); each FMU (by resolved path)
+    into a directory of its own, so that instances of two FMUs in one process (the
+    reference and a URDF arm's) never share resources/."""
+    return _unzip_dir(str(Path(path or fmu_path()).resolve()))
+
+
+@functools.lru_cache(maxsize=None)
+def _unzip_dir(path: str) -> str:
     from fmpy import extract
 
-    target = scratch_dir() / "fmu"
+    default = path == str(fmu_path())
+    target = scratch_dir() / ("fmu" if default else f"fmu-{hashlib.sha1(path.encode()).hexdigest()[:12]}")
     if target.exists():
         shutil.rmtree(target)
-    return extract(str(path or fmu_path()), unzipdir=str(target))
+    return extract(path, unzipdir=str(target))
 
 
 class Variables:
