@@ -25,6 +25,10 @@ mu_s, h_min = 1e-2 > h_max): the set still returns fmi2OK, relations are checked
 the next step. So the value at the bound is tested by the set alone; the step runs
 after the start value has been set back.
 
+The range checks run against the reference FMU and against the FMU of a URDF arm (the
+KUKA iiwa of models/urdf/kuka_iiwa, 7 joints, built once per process by urdf_fmus.py): its
+cases carry the id prefix ``iiwa:``.
+
 Then the reports of issue 13, one by one: ``m[2] = 1e300``, ``slider_b[3] = 1e300``,
 ``q_star[3] = -1e300``, ``qd_star[2] = +-1e300`` are refused (the mass's message is
 the one the README quotes), and ``d_C[1] = 1e-300`` (in range) is accepted and 300
@@ -33,6 +37,7 @@ steps of 1 ms run with every output finite.
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,6 +45,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Error, fmi2OK, fmi2Real, fmi2True, fmi2ValueReference
 
 from helpers import INTERVAL, Slave, fmu_path, input_vector, model_description
+from urdf_fmus import iiwa_fmu
 
 # Variables (by name without the joint index) whose lower bound is excluded: the
 # README's range table, `Range::positive` and the settings' exclusive bounds.
@@ -50,12 +56,13 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _INTERVAL = re.compile(rf"([\[(])\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\]")
 
 
-def _ranged_variables():
+def _ranged_variables(path=None):
     """(name, min, max, fixed) of every Real parameter and input with min or max."""
-    if not fmu_path().is_file():
+    path = path or fmu_path()
+    if not Path(path).is_file():
         return []
     out = []
-    for v in model_description(str(fmu_path())).modelVariables:
+    for v in model_description(str(path)).modelVariables:
         if v.type != "Real" or v.causality not in ("parameter", "input"):
             continue
         if v.min is None and v.max is None:
@@ -70,9 +77,37 @@ RANGED = _ranged_variables()
 _NO_FMU = pytest.param(None, marks=pytest.mark.skip(reason=f"{fmu_path()} does not exist: build it first"))
 
 
+def _urdf_fmus():
+    """{"iiwa": path} of the URDF FMU, built at collection (only when the FMU under test
+    exists); a failed build is one failing case, not a collection error."""
+    if not fmu_path().is_file():
+        return {}, None
+    try:
+        return {"iiwa": str(iiwa_fmu())}, None
+    except Exception as e:  # noqa: BLE001 -- reported by the case below
+        return {}, str(e)
+
+
+URDF_FMUS, URDF_BUILD_ERROR = _urdf_fmus()
+# The FMU of every case: the reference's (id = the variable) and the URDF arm's (id "iiwa:…").
+FMUS = {"": str(fmu_path()), **URDF_FMUS}
+RANGED_BY_FMU = {key: _ranged_variables(path) for key, path in FMUS.items()}
+
+
 def _params(bound):
-    cases = [pytest.param(r, id=r[0]) for r in RANGED if r[1 if bound == "min" else 2] is not None]
+    cases = []
+    for key, ranged in RANGED_BY_FMU.items():
+        prefix = f"{key}:" if key else ""
+        cases += [pytest.param((FMUS[key], *r), id=prefix + r[0]) for r in ranged if r[1 if bound == "min" else 2] is not None]
+    if URDF_BUILD_ERROR:
+        cases.append(pytest.param(None, id="iiwa:build"))
     return cases or [_NO_FMU]
+
+
+def _unpack(var):
+    if var is None and URDF_BUILD_ERROR:
+        pytest.fail(f"the URDF FMU could not be built:\n{URDF_BUILD_ERROR}")
+    return var
 
 
 def _base(name):
@@ -84,9 +119,9 @@ def _intervals(text):
     return [(m.group(1) == "(", float(m.group(2)), float(m.group(3))) for m in _INTERVAL.finditer(text)]
 
 
-def _declares_exclusive_min(name, lo, hi):
+def _declares_exclusive_min(name, lo, hi, path=None):
     """True if the description of ``name`` states the interval (lo, hi]."""
-    v = next(v for v in model_description(str(fmu_path())).modelVariables if v.name == name)
+    v = next(v for v in model_description(str(path or fmu_path())).modelVariables if v.name == name)
     return (True, lo, hi) in _intervals(v.description or "")
 
 
@@ -94,11 +129,11 @@ def _declares_exclusive_min(name, lo, hi):
 # instance helpers
 
 
-def _slave(name, fixed):
+def _slave(name, fixed, path=None):
     """A fixed parameter's instance is in initialization mode (it may be set, and
     fmi2GetReal may read it); any other variable's instance is initialized with the
-    reference motion's inputs."""
-    s = Slave(f"range-{name}")
+    reference motion's inputs (of joints 1 to 4; on a URDF arm the others at 0)."""
+    s = Slave(f"range-{name}", path=path)
     if fixed:
         s.fmu.setupExperiment(startTime=0.0)
         s.fmu.enterInitializationMode()
@@ -196,13 +231,37 @@ def test_every_parameter_and_input_declares_a_range():
         assert must in names
 
 
+def test_urdf_fmu_declares_the_ranges_of_the_reference():
+    """The URDF arm's FMU declares min and max for every tunable parameter and input
+    (not q_start, qd_start), the same bounds as the reference FMU for the same kind of
+    variable."""
+    if not fmu_path().is_file():
+        pytest.skip(f"{fmu_path()} does not exist")
+    assert not URDF_BUILD_ERROR, URDF_BUILD_ERROR
+    md = model_description(FMUS["iiwa"])
+    missing = [
+        v.name
+        for v in md.modelVariables
+        if v.type == "Real"
+        and v.causality in ("parameter", "input")
+        and not _base(v.name).endswith("_start")
+        and (v.min is None or v.max is None)
+    ]
+    assert not missing, f"no min or max declared: {missing}"
+    reference = {_base(r[0]): r[1:3] for r in RANGED_BY_FMU[""]}
+    iiwa = {_base(r[0]): r[1:3] for r in RANGED_BY_FMU["iiwa"]}
+    assert {"k", "mu_k", "d_A", "m", "q_star", "qd_star", "qdd_star", "h_max"} <= set(iiwa)
+    differ = {b: (reference[b], iiwa[b]) for b in iiwa if b in reference and reference[b] != iiwa[b]}
+    assert not differ, differ
+
+
 @pytest.mark.parametrize("var", _params("max"))
 def test_max_is_accepted_and_above_is_refused(var):
     """Exactly max is accepted; the next double above and 1e300 are refused with the
     variable and its range in the message, the value kept; the instance then steps."""
-    name, lo, hi, fixed = var
-    exclusive = lo is not None and _declares_exclusive_min(name, lo, hi)
-    with _slave(name, fixed) as s:
+    path, name, lo, hi, fixed = _unpack(var)
+    exclusive = lo is not None and _declares_exclusive_min(name, lo, hi, path)
+    with _slave(name, fixed, path) as s:
         v0 = s.get(name)
         for bad in (math.nextafter(hi, math.inf), 1e300):
             _refused(s, name, bad, lo, hi, exclusive, kept=v0)
@@ -217,14 +276,14 @@ def test_min_is_enforced_as_declared(var):
     EXCLUSIVE_MIN) is refused and the next double above it accepted; an included min
     is accepted and the next double below refused. Far below (-1e300) is refused.
     The message shows the same interval; the value is kept; the instance then steps."""
-    name, lo, hi, fixed = var
-    exclusive = _declares_exclusive_min(name, lo, hi)
+    path, name, lo, hi, fixed = _unpack(var)
+    exclusive = _declares_exclusive_min(name, lo, hi, path)
     assert exclusive == (_base(name) in EXCLUSIVE_MIN), (
         f"`{name}`: the modelDescription declares min = {lo} "
         + ("excluded" if exclusive else f"included (no interval ({lo}, {hi}] in its description)")
         + f", expected {'excluded' if _base(name) in EXCLUSIVE_MIN else 'included'}"
     )
-    with _slave(name, fixed) as s:
+    with _slave(name, fixed, path) as s:
         v0 = s.get(name)
         below = math.nextafter(lo, -math.inf)
         for bad in ([lo] if exclusive else []) + [below, -1e300]:
@@ -239,11 +298,12 @@ def test_min_is_enforced_as_declared(var):
 def test_refused_value_in_a_batch_changes_nothing(var):
     """A set of several values with one out of range is refused as a whole: the valid
     values before it in the same call are not taken either."""
-    name, lo, hi, fixed = var
-    with _slave(name, fixed) as s:
+    path, name, lo, hi, fixed = _unpack(var)
+    with _slave(name, fixed, path) as s:
         # Another variable of the same mode and its start value, set to a valid
         # different value in the same call, before the bad one.
-        other = next(r for r in RANGED if r[0] != name and r[3] == fixed)
+        ranged = RANGED_BY_FMU[next(k for k, p in FMUS.items() if p == path)]
+        other = next(r for r in ranged if r[0] != name and r[3] == fixed)
         o_name, o_lo, o_hi = other[0], other[1], other[2]
         o0 = s.get(o_name)
         o_new = o_hi if o0 != o_hi else o_lo
