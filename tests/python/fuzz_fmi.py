@@ -6,15 +6,23 @@ through fmpy's FMU2Slave: the life-cycle calls in any order, steps with good and
 communication points and step sizes, sets of any variable (inputs, parameters, settings,
 outputs, Booleans) to extreme values (+-1e300, +-1e-300, +-0, NaN, +-inf and ordinary
 ones), input derivatives, FMU states taken, restored, serialized, mutated (bit flips,
-truncation, extension, zeros) and deserialized. It checks what a master relies on:
+truncation, extension, zeros) and deserialized. An FMU of a URDF arm (a URDF in its
+resources/) is also instantiated, now and then, from a copy of its resources whose URDF is
+mutated the same way or has a number replaced by an extreme or garbage. It checks what a
+master relies on:
 
 * no crash and no hang (each batch has a time limit);
 * no fmi2OK step (or initialization) after which an output reads NaN or infinite;
-* a status is one of OK, Warning, Discard, Error (never Fatal or Pending).
+* a status is one of OK, Warning, Discard, Error (never Fatal or Pending);
+* fmi2Instantiate with a mutated URDF fails (returns NULL, fmpy raises) and logs an
+  fmi2Error message: the FMU never runs a URDF other than the one its GUID was made from.
 
 Run it from the repository root, e.g. the long run of the README:
 
     python tests/python/fuzz_fmi.py --calls 100000 --batches 50 --seed 1
+
+and the same against a URDF arm's FMU (``--fmu``, e.g. one built by ``bash
+scripts/build_fmu.sh --model models/urdf/kuka_iiwa/kuka_iiwa.toml --out iiwa.fmu``).
 
 It prints one line per batch and a summary; exit status 1 if any batch failed.
 """
@@ -25,8 +33,11 @@ import math
 import os
 import random
 import struct
+import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -65,6 +76,54 @@ def _mutate(rng: random.Random, data: bytes) -> bytes:
     return bytes(b)
 
 
+URDF_VALUES = ["-1", "0", "nan", "inf", "1e308", "-1e308", "", "x", "1 2", "1e-308"]
+
+
+def _mutate_urdf(rng: random.Random, text: bytes) -> bytes:
+    """A byte-level mutation (as for FMU states), or one attribute value (or one number
+    of it) replaced by an extreme or by garbage."""
+    if rng.random() < 0.5:
+        return _mutate(rng, text)
+    spans = [(m.start(1), m.end(1)) for m in re.finditer(rb'="([^"]*)"', text)]
+    if not spans:
+        return _mutate(rng, text)
+    s, e = rng.choice(spans)
+    tokens = [(m.start() + s, m.end() + s) for m in re.finditer(rb"\S+", text[s:e])]
+    if tokens and rng.random() < 0.5:
+        s, e = rng.choice(tokens)
+    return text[:s] + rng.choice(URDF_VALUES).encode() + text[e:]
+
+
+class CorruptResources:
+    """A directory beside the FMU's unzipped one whose binaries/ is a link to the FMU's (the
+    library loaded is the same) and whose resources/ is a copy with the URDF mutated."""
+
+    def __init__(self, unzipdir: str):
+        self.source = Path(unzipdir)
+        self.urdfs = sorted((self.source / "resources").glob("*.urdf"))
+        self.dir = None
+
+    def prepare(self, rng: random.Random):
+        """A mutated URDF in place; None if the mutation changed nothing."""
+        if self.dir is None:
+            self.dir = Path(tempfile.mkdtemp(prefix="fuzz-urdf-"))
+            (self.dir / "binaries").symlink_to(self.source / "binaries")
+            shutil.copytree(self.source / "resources", self.dir / "resources")
+            for extra in self.source.iterdir():
+                if extra.name not in ("binaries", "resources"):
+                    (self.dir / extra.name).symlink_to(extra)
+        urdf = rng.choice(self.urdfs)
+        original = urdf.read_bytes()
+        mutated = _mutate_urdf(rng, original)
+        for u in self.urdfs:
+            (self.dir / "resources" / u.name).write_bytes(original if u != urdf else mutated)
+        return None if mutated == original else str(self.dir)
+
+    def remove(self):
+        if self.dir is not None:
+            shutil.rmtree(self.dir, ignore_errors=True)
+
+
 def run_batch(fmu: str, seed: int, calls: int) -> dict:
     """Makes `calls` random calls on one instance (re-instantiated after fmi2FreeInstance);
     returns the counts and the violations found."""
@@ -80,7 +139,8 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
     real_outputs = [v.valueReference for v in reals if v.causality == "output"]
     inputs = [v for v in reals if v.causality == "input"]
     counts = {"calls": 0, "ok": 0, "errors": 0, "discards": 0, "steps_ok": 0, "states_mutated": 0,
-              "states_restored": 0}
+              "states_restored": 0, "corrupt_urdf_refused": 0}
+    corrupt = CorruptResources(unzipdir)
     violations = []
     slave = None
     states = []
@@ -100,14 +160,38 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         if bad:
             violations.append(f"seed {seed}: fmi2OK {after}, then non-finite outputs {bad[:3]}")
 
+    def corrupt_instantiation():
+        """fmi2Instantiate with a mutated URDF must fail, with an fmi2Error logged."""
+        from stickslip.fmu import LogCapture
+
+        directory = corrupt.prepare(rng)
+        if directory is None:
+            return
+        log = LogCapture()
+        other = FMU2Slave(guid=md.guid, unzipDirectory=directory, modelIdentifier=md.coSimulation.modelIdentifier,
+                          instanceName=f"corrupt{seed}")
+        try:
+            other.instantiate(callbacks=log.callbacks)
+        except Exception:  # fmpy: "Failed to instantiate model"
+            other.freeLibrary()
+            if not any(st == 3 and "fmi2Instantiate" in m for (_, st, _, m) in log.records):
+                violations.append(f"seed {seed}: fmi2Instantiate refused a mutated URDF without an fmi2Error message")
+            counts["corrupt_urdf_refused"] += 1
+            return
+        other.freeInstance()
+        violations.append(f"seed {seed}: fmi2Instantiate accepted a mutated URDF")
+
+    actions = ["step", "set", "set_inputs", "get", "derivatives", "setup", "enter", "exit", "get_state",
+               "set_state", "serialize", "deserialize", "reset", "terminate", "free", "bool", "start"]
+    weights = [40, 15, 12, 6, 3, 2, 2, 2, 3, 3, 3, 4, 2, 1, 1, 2, 3]
+    if corrupt.urdfs:
+        actions, weights = actions + ["corrupt_urdf"], weights + [2]
+
     slave = new_slave()
     recover = True
     for _ in range(calls):
         counts["calls"] += 1
-        action = rng.choices(
-            ["step", "set", "set_inputs", "get", "derivatives", "setup", "enter", "exit", "get_state",
-             "set_state", "serialize", "deserialize", "reset", "terminate", "free", "bool", "start"],
-            weights=[40, 15, 12, 6, 3, 2, 2, 2, 3, 3, 3, 4, 2, 1, 1, 2, 3])[0]
+        action = rng.choices(actions, weights=weights)[0]
         if recover:
             # After an error a master resets and starts again, most of the time.
             action, recover = "start", False
@@ -181,6 +265,8 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
             elif action == "bool" and bools:
                 v = rng.choice(bools)
                 slave.setBoolean([v.valueReference], [rng.random() < 0.5])
+            elif action == "corrupt_urdf":
+                corrupt_instantiation()
             counts["ok"] += 1
         except FMICallException as e:
             status = getattr(e, "status", None)
@@ -200,6 +286,7 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         slave.freeInstance()
     except Exception:
         pass
+    corrupt.remove()
     return {"seed": seed, "counts": counts, "violations": violations}
 
 
