@@ -3,8 +3,8 @@
 /// A model that cannot be built: each variant names the field and the reason.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
-    /// The model file could not be read.
-    #[error("cannot read model file `{path}`: {reason}")]
+    /// The model file, or the URDF it names, could not be read.
+    #[error("cannot read `{path}`: {reason}")]
     Io {
         /// The path as given.
         path: String,

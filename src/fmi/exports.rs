@@ -166,7 +166,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
             let instance = Instance::new(&source, logger.clone()).map_err(|e| format!("{}: {e}", file.display()))?;
             if instance.guid() != guid {
                 return Err(format!(
-                    "fmuGUID {guid} does not match the FMU's resources (GUID {}): modelDescription.xml and resources/model.toml are from different FMUs",
+                    "fmuGUID {guid} does not match the FMU's resources (GUID {}): modelDescription.xml and resources/ (model.toml, or the URDF it names) are from different FMUs",
                     instance.guid()
                 ));
             }
