@@ -186,7 +186,10 @@ class ResultStore:
 class Progress:
     """done / failed / running / rate / ETA: a tqdm bar on a terminal, else a line per 10 %."""
 
-    def __init__(self, total: int, already: int, tty: bool | None = None, stream=sys.stderr):
+    def __init__(self, total: int, already: int, tty: bool | None = None, stream=None):
+        # sys.stderr as it is now, not as it was at import (a host that
+        # redirects it, pytest's capture, would leave a closed stream).
+        stream = sys.stderr if stream is None else stream
         self.total, self.already, self.stream = total, already, stream
         self.done = self.failed = 0
         self.start = time.monotonic()
