@@ -175,7 +175,8 @@ def fmu_joints(md) -> tuple:
     return n, names
 
 
-def _finite(x) -> bool:
+def is_finite_number(x) -> bool:
+    """True for a finite int or float read from TOML (not a bool, NaN or inf)."""
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
@@ -280,7 +281,7 @@ class SplineMotion:
 
 
 def _number(value, what: str, where: str) -> float:
-    if not _finite(value):
+    if not is_finite_number(value):
         raise MotionError(f"{where}: {what} = {value!r}: must be a finite number")
     return float(value)
 

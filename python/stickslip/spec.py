@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from .fmu import DEFAULT_FMU
-from .motion import motion_identity
+from .motion import is_finite_number, motion_identity
 
 DISTRIBUTIONS = {  # name -> (what the two numbers are, check, message when the check fails)
     "uniform": ("[low, high]", lambda a, b: a < b, "needs low < high"),
@@ -53,10 +53,6 @@ TOP_KEYS = ("stop_time", "communication_step", "motion", "fmu", "grid", "sample"
 
 class SpecError(ValueError):
     """A SPEC that cannot run; the message names the key and the problem."""
-
-
-def _number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 @dataclass(frozen=True)
@@ -128,7 +124,7 @@ def _positive(table: dict, key: str, where: str) -> float:
     if key not in table:
         raise SpecError(f"{where}: `{key}` is missing")
     x = table[key]
-    if not _number(x) or x <= 0:
+    if not is_finite_number(x) or x <= 0:
         raise SpecError(f"{where}: `{key}` = {x!r}: must be a positive number (seconds)")
     return float(x)
 
@@ -174,7 +170,7 @@ def parse(text: str, where: str = "SPEC", overrides: dict | None = None) -> Spec
         for name, values in grid.items():
             if not isinstance(values, list) or not values:
                 raise SpecError(f"{where}: grid `{name}` = {values!r}: must be a non-empty list of numbers")
-            bad = [v for v in values if not _number(v)]
+            bad = [v for v in values if not is_finite_number(v)]
             if bad:
                 raise SpecError(f"{where}: grid `{name}`: {bad[0]!r} is not a finite number")
             if len(set(values)) != len(values):
@@ -210,7 +206,7 @@ def _distribution(name: str, d, where: str) -> Distribution:
         raise SpecError(f"{where}: sample `{name}` = {d!r}: must be {kinds}")
     kind, values = next(iter(d.items()))
     form, ok, why = DISTRIBUTIONS[kind]
-    if not isinstance(values, list) or len(values) != 2 or not all(_number(v) for v in values):
+    if not isinstance(values, list) or len(values) != 2 or not all(is_finite_number(v) for v in values):
         raise SpecError(f"{where}: sample `{name}`: {kind} = {values!r}: must be two finite numbers {form}")
     a, b = (float(v) for v in values)
     if not ok(a, b):
