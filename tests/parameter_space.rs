@@ -198,13 +198,16 @@ fn env_u64(name: &str, default: u64) -> u64 {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
+/// A variant's index and its outcome, or why it could not be judged.
+type Judged = (usize, Result<(Outcome, String), String>);
+
 #[test]
 fn default_error_control_gives_the_converged_answer_across_the_parameter_space() {
     let (n, seed) = (env_u64("STICKSLIP_VARIANTS", 24), env_u64("STICKSLIP_SEED", 1));
     let variants: Vec<Variant> = (0..n).map(|i| draw(seed, i)).collect();
     let threads = std::thread::available_parallelism().map_or(1, |p| p.get());
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut outcomes: Vec<(usize, Result<(Outcome, String), String>)> = std::thread::scope(|scope| {
+    let mut outcomes: Vec<Judged> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 scope.spawn(|| {

@@ -294,7 +294,7 @@ const NOT_NUMBERS: [&str; 12] = ["NaN", "nan", "inf", "-inf", "1e400", "", "garb
 /// `<collision>`, `<dynamics>`, `<gazebo>` …, and not in a comment).
 fn read_by_the_reader(text: &str, start: usize) -> bool {
     let before = &text[..start];
-    if before.rfind("<!--").map_or(false, |c| before.rfind("-->").map_or(true, |e| e < c)) {
+    if before.rfind("<!--").is_some_and(|c| before.rfind("-->").is_none_or(|e| e < c)) {
         return false;
     }
     let tag_at = before.rfind('<').expect("an attribute is inside a tag");

@@ -42,7 +42,7 @@ fn run(model: Model) -> Vec<Vec<(String, f64)>> {
         sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, interval).unwrap();
         let s = sim.state();
         let mut row = Vec::new();
-        for i in 0..s.q.len() {
+        for (i, turn) in axes.iter().enumerate() {
             let push = |row: &mut Vec<(String, f64)>, name: &str, v: f64| row.push((format!("{name}[{}]", i + 1), v));
             push(&mut row, "q", s.q[i]);
             push(&mut row, "qd", s.qd[i]);
@@ -52,7 +52,7 @@ fn run(model: Model) -> Vec<Vec<(String, f64)>> {
             push(&mut row, "N_normal", s.normal_load[i]);
             push(&mut row, "stick", f64::from(u8::from(s.is_stuck(i))));
             // Back into the engine's link frame (the DH joint frame).
-            let (f, n): (Vec3, Vec3) = (axes[i].transpose() * s.reaction_force[i], axes[i].transpose() * s.reaction_moment[i]);
+            let (f, n): (Vec3, Vec3) = (turn.transpose() * s.reaction_force[i], turn.transpose() * s.reaction_moment[i]);
             for k in 0..3 {
                 row.push((format!("f[{},{}]", i + 1, k + 1), f[k]));
                 row.push((format!("n[{},{}]", i + 1, k + 1), n[k]));
