@@ -170,7 +170,7 @@ fn reference_file_parses_to_the_rrpr_arm() {
                         assert_eq!(damping, 0.0, "joint {number}");
                         assert_eq!(clearance, 0.0, "joint {number}");
                     }
-                    Drive::Rigid => panic!("joint {number} should have a flexible drive"),
+                    other => panic!("joint {number} should have a flexible drive, has {other:?}"),
                 }
                 let friction = joint.friction.expect("joints 1 and 3 have friction");
                 assert_eq!(friction.coefficients.mu_kinetic, 0.2, "joint {number}");

@@ -9,7 +9,7 @@ use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
 use crate::model::{Model, ModelSource};
-use crate::stepper::{DriveInputs, InitialState, Phase, Simulator, State, INPUT_RANGES};
+use crate::stepper::{DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
 /// The value of a variable.
@@ -36,9 +36,14 @@ pub(crate) struct Instance {
     stop_time: Option<f64>,
     /// q*, q̇*, q̈* as set by the master (index = `InputField::index`).
     inputs: [Vec<f64>; 3],
+    /// τ_m and its first two derivatives as set by the master, per joint.
+    torques: [Vec<f64>; 3],
     use_start_values: bool,
     q_start: Vec<f64>,
     qd_start: Vec<f64>,
+    theta_m_start: Vec<f64>,
+    omega_m_start: Vec<f64>,
+    static_start: bool,
     /// Before step mode: the engine must be (re)started from the current
     /// values before outputs are read.
     stale: bool,
@@ -50,6 +55,10 @@ pub(crate) struct Instance {
 
 fn drive_inputs(inputs: &[Vec<f64>; 3]) -> DriveInputs<'_> {
     DriveInputs { q_star: &inputs[0], qd_star: &inputs[1], qdd_star: &inputs[2] }
+}
+
+fn motor_torques(torques: &[Vec<f64>; 3]) -> MotorTorques<'_> {
+    MotorTorques { tau_m: &torques[0], tau_m_rate: &torques[1], tau_m_accel: &torques[2] }
 }
 
 fn output_value(s: &State, o: Output) -> Value {
@@ -84,6 +93,17 @@ fn phase_name(p: Phase) -> &'static str {
     }
 }
 
+/// "joint 3" for a joint's coordinate, "rotor of joint 1" for a motor's.
+fn coordinate_name(model: &Model, coordinate: usize) -> String {
+    let n = model.nq();
+    if coordinate < n {
+        format!("joint {}", coordinate + 1)
+    } else {
+        let joint = model.motor_joints().get(coordinate - n).copied().unwrap_or(0);
+        format!("rotor of joint {}", joint + 1)
+    }
+}
+
 fn type_error(v: &Variable, expected: &str) -> Fault {
     let actual = match v.ty {
         Type::Real { .. } => "Real",
@@ -113,9 +133,13 @@ impl Instance {
             start_time: 0.0,
             stop_time: None,
             inputs: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            torques: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             use_start_values: false,
             q_start: vec![0.0; n],
             qd_start: vec![0.0; n],
+            theta_m_start: vec![0.0; n],
+            omega_m_start: vec![0.0; n],
+            static_start: false,
             stale: true,
             ignored_derivatives_reported: false,
             logger,
@@ -177,9 +201,13 @@ impl Instance {
         self.start_time = 0.0;
         self.stop_time = None;
         self.inputs = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        self.torques = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
         self.use_start_values = false;
         self.q_start = vec![0.0; n];
         self.qd_start = vec![0.0; n];
+        self.theta_m_start = vec![0.0; n];
+        self.omega_m_start = vec![0.0; n];
+        self.static_start = false;
         self.stale = true;
         self.ignored_derivatives_reported = false;
         Ok(Status::Ok)
@@ -235,7 +263,7 @@ impl Instance {
         if self.logger.enabled(Category::Events) {
             let s = self.sim.state();
             let phases: Vec<String> =
-                s.phase.iter().enumerate().map(|(j, p)| format!("joint {} {}", j + 1, phase_name(*p))).collect();
+                s.phase.iter().enumerate().map(|(c, p)| format!("{} {}", coordinate_name(&self.base, c), phase_name(*p))).collect();
             self.logger.log(
                 Status::Ok,
                 Category::Events,
@@ -253,6 +281,15 @@ impl Instance {
         let mut sim =
             Simulator::new(self.sim.model().clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
         let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
+        let rotor_start = if self.static_start {
+            RotorStart::StaticEquilibrium
+        } else if self.use_start_values {
+            RotorStart::At { theta_m: self.theta_m_start.clone(), omega_m: self.omega_m_start.clone() }
+        } else {
+            RotorStart::Unloaded
+        };
+        sim.set_rotor_start(rotor_start).map_err(|e| Fault::error(format!("start values: {e}")))?;
+        sim.set_motor_torques(&motor_torques(&self.torques)).map_err(|e| Fault::error(e.to_string()))?;
         let variables = &self.variables;
         sim.initialize_checked(self.start_time, &drive_inputs(&self.inputs), initial, |s| finite_outputs(variables, s))
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
@@ -280,6 +317,10 @@ impl Instance {
             Quantity::UseStartValues => Value::Boolean(self.use_start_values),
             Quantity::StartQ(j) => Value::Real(self.q_start[j]),
             Quantity::StartQd(j) => Value::Real(self.qd_start[j]),
+            Quantity::MotorTorque(j) => Value::Real(self.torques[0][j]),
+            Quantity::StartThetaM(j) => Value::Real(self.theta_m_start[j]),
+            Quantity::StartOmegaM(j) => Value::Real(self.omega_m_start[j]),
+            Quantity::StaticStart => Value::Boolean(self.static_start),
         }
     }
 
@@ -361,6 +402,12 @@ impl Instance {
                         return Err(Fault::error(format!("`{}` = {x:e} lies outside its range {range}", v.name)));
                     }
                 }
+                Quantity::MotorTorque(_) => {
+                    let range = MOTOR_TORQUE_RANGES[0].1;
+                    if !range.contains(*x) {
+                        return Err(Fault::error(format!("`{}` = {x:e} lies outside its range {range}", v.name)));
+                    }
+                }
                 Quantity::Parameter(p, j) => trial
                     .get_or_insert_with(|| self.sim.model().clone())
                     .set_parameter(p, j, *x)
@@ -410,6 +457,10 @@ impl Instance {
             (Quantity::StartQ(j), Value::Real(x)) => self.q_start[j] = x,
             (Quantity::StartQd(j), Value::Real(x)) => self.qd_start[j] = x,
             (Quantity::UseStartValues, Value::Boolean(b)) => self.use_start_values = b,
+            (Quantity::MotorTorque(j), Value::Real(x)) => self.torques[0][j] = x,
+            (Quantity::StartThetaM(j), Value::Real(x)) => self.theta_m_start[j] = x,
+            (Quantity::StartOmegaM(j), Value::Real(x)) => self.omega_m_start[j] = x,
+            (Quantity::StaticStart, Value::Boolean(b)) => self.static_start = b,
             (q, v) => return Err(Fault::error(format!("{v:?} cannot be stored in {q:?}"))),
         }
         if self.lifecycle.is_configuring() {
@@ -433,8 +484,11 @@ impl Instance {
         let mut ignored = Vec::new();
         for ((vr, order), x) in vrs.iter().zip(orders).zip(values) {
             let v = self.variable(*vr)?;
-            let Quantity::Input(field, j) = v.quantity else {
-                return Err(Fault::error(format!("`{}` is not an input; only inputs have input derivatives", v.name)));
+            // Which polynomial the variable belongs to, and its place in it.
+            let (is_torque, base, j) = match v.quantity {
+                Quantity::Input(field, j) => (false, field.index(), j),
+                Quantity::MotorTorque(j) => (true, 0, j),
+                _ => return Err(Fault::error(format!("`{}` is not an input; only inputs have input derivatives", v.name))),
             };
             if *order < 1 {
                 return Err(Fault::error(format!("derivative order {order} of `{}`: orders start at 1", v.name)));
@@ -445,9 +499,10 @@ impl Instance {
                     v.name
                 )));
             }
-            match field.index() + *order as usize {
+            let ranges = if is_torque { MOTOR_TORQUE_RANGES } else { INPUT_RANGES };
+            match base + *order as usize {
                 k @ 0..=2 => {
-                    let (name, range) = INPUT_RANGES[k];
+                    let (name, range) = ranges[k];
                     if !range.contains(*x) {
                         return Err(Fault::error(format!(
                             "derivative of order {order} of `{}` sets `{name}[{}]` = {x:e}, outside its range {range}",
@@ -455,14 +510,18 @@ impl Instance {
                             j + 1
                         )));
                     }
-                    updates.push((k, j, *x))
+                    updates.push((is_torque, k, j, *x))
                 }
                 _ if *x == 0.0 => {}
                 _ => ignored.push(format!("order {order} of `{}`", v.name)),
             }
         }
-        for (k, j, x) in updates {
-            self.inputs[k][j] = x;
+        for (is_torque, k, j, x) in updates {
+            if is_torque {
+                self.torques[k][j] = x;
+            } else {
+                self.inputs[k][j] = x;
+            }
         }
         if self.lifecycle.is_configuring() {
             self.stale = true;
@@ -501,6 +560,8 @@ impl Instance {
                 return Err(Fault::error(format!("a step to t = {} s passes the stop time {stop} s", now + h)));
             }
         }
+        // Checked when set: every value lies in its range.
+        self.sim.set_motor_torques(&motor_torques(&self.torques)).map_err(|e| Fault::error(e.to_string()))?;
         let variables = &self.variables;
         let result = self.sim.advance_checked(&drive_inputs(&self.inputs), h, |s| finite_outputs(variables, s));
         if result.is_err() {
@@ -551,7 +612,7 @@ impl Instance {
             let (list, dropped) = self.sim.transitions();
             for t in list {
                 let message =
-                    format!("t = {} s: joint {} {} -> {}", t.time, t.joint + 1, phase_name(t.from), phase_name(t.to));
+                    format!("t = {} s: {} {} -> {}", t.time, coordinate_name(&self.base, t.joint), phase_name(t.from), phase_name(t.to));
                 self.logger.log(Status::Ok, Category::Events, &message);
             }
             if dropped > 0 {
@@ -594,9 +655,13 @@ impl Instance {
             start_time: self.start_time,
             stop_time: self.stop_time,
             inputs: self.inputs.clone(),
+            torques: self.torques.clone(),
             use_start_values: self.use_start_values,
             q_start: self.q_start.clone(),
             qd_start: self.qd_start.clone(),
+            theta_m_start: self.theta_m_start.clone(),
+            omega_m_start: self.omega_m_start.clone(),
+            static_start: self.static_start,
             parameters,
             state: self.sim.state().clone(),
         };
@@ -607,7 +672,8 @@ impl Instance {
     /// same model.
     pub(crate) fn check_snapshot(&self, bytes: &[u8]) -> Result<Snapshot, Fault> {
         let n_parameters = self.parameter_quantities().count();
-        snapshot::decode(bytes, self.model_hash, self.base.nq(), n_parameters)
+        let motors = self.base.n_coordinates() - self.base.nq();
+        snapshot::decode(bytes, self.model_hash, self.base.nq(), motors, n_parameters)
             .map_err(|e| Fault::error(format!("rejected FMU state: {e}")))
     }
 
@@ -638,15 +704,32 @@ impl Instance {
         if s.lifecycle.is_running() {
             sim.set_state(&s.state).map_err(|e| rejected(e.to_string()))?;
         }
-        let Snapshot { lifecycle, start_time, stop_time, inputs, use_start_values, q_start, qd_start, .. } = s;
+        let Snapshot {
+            lifecycle,
+            start_time,
+            stop_time,
+            inputs,
+            torques,
+            use_start_values,
+            q_start,
+            qd_start,
+            theta_m_start,
+            omega_m_start,
+            static_start,
+            ..
+        } = s;
         self.sim = sim;
         self.lifecycle = lifecycle;
         self.start_time = start_time;
         self.stop_time = stop_time;
         self.inputs = inputs;
+        self.torques = torques;
         self.use_start_values = use_start_values;
         self.q_start = q_start;
         self.qd_start = qd_start;
+        self.theta_m_start = theta_m_start;
+        self.omega_m_start = omega_m_start;
+        self.static_start = static_start;
         self.stale = lifecycle.is_configuring();
         Ok(Status::Ok)
     }

@@ -11,11 +11,13 @@
 //! 36+L    8     FNV-1a 64 checksum of bytes 0 .. 36+L
 //! ```
 //!
-//! Payload, n joints, f64 as IEEE bits: life-cycle state (u8); start time;
-//! stop time (u8 flag + f64); n (u32); inputs q*, q̇*, q̈* (3n); start values
-//! (u8 flag, n q, n q̇); the parameter and setting variables in layout order
-//! (u32 count + values); the engine [`State`] field by field (phases as
-//! tag + direction bytes, counters as u64).
+//! Payload, n joints, m motor drives, f64 as IEEE bits: life-cycle state
+//! (u8); start time; stop time (u8 flag + f64); n (u32); m (u32); inputs
+//! q*, q̇*, q̈* (3n); motor torques τ_m and their two derivatives (3n);
+//! start values (u8 flag, n q, n q̇, n θ_m, n θ̇_m, u8 static start); the
+//! parameter and setting variables in layout order (u32 count + values);
+//! the engine [`State`] field by field (per-coordinate fields with n + m
+//! entries, phases as tag + direction bytes, counters as u64).
 
 use super::description::fnv1a_64;
 use super::lifecycle::LifeCycle;
@@ -23,7 +25,7 @@ use crate::math::Vec3;
 use crate::stepper::{Energy, Phase, State, StepStatistics};
 
 const MAGIC: [u8; 8] = *b"SSMFMUst";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 const HEADER: usize = 36;
 const CHECKSUM: usize = 8;
 
@@ -35,9 +37,14 @@ pub(crate) struct Snapshot {
     pub(crate) stop_time: Option<f64>,
     /// q*, q̇*, q̈* as set by the master.
     pub(crate) inputs: [Vec<f64>; 3],
+    /// τ_m and its two derivatives as set by the master.
+    pub(crate) torques: [Vec<f64>; 3],
     pub(crate) use_start_values: bool,
     pub(crate) q_start: Vec<f64>,
     pub(crate) qd_start: Vec<f64>,
+    pub(crate) theta_m_start: Vec<f64>,
+    pub(crate) omega_m_start: Vec<f64>,
+    pub(crate) static_start: bool,
     /// Values of the parameter and setting variables, in layout order.
     pub(crate) parameters: Vec<f64>,
     /// The engine state.
@@ -52,10 +59,15 @@ pub(crate) fn encode(s: &Snapshot, model_hash: u128) -> Vec<u8> {
     p.u8(u8::from(s.stop_time.is_some()));
     p.f64(s.stop_time.unwrap_or(0.0));
     p.u32(s.state.nq() as u32);
+    p.u32((s.state.n_coordinates() - s.state.nq()) as u32);
     s.inputs.iter().for_each(|v| p.f64s(v));
+    s.torques.iter().for_each(|v| p.f64s(v));
     p.u8(u8::from(s.use_start_values));
     p.f64s(&s.q_start);
     p.f64s(&s.qd_start);
+    p.f64s(&s.theta_m_start);
+    p.f64s(&s.omega_m_start);
+    p.u8(u8::from(s.static_start));
     p.u32(s.parameters.len() as u32);
     p.f64s(&s.parameters);
     put_state(&mut p, &s.state);
@@ -72,9 +84,9 @@ pub(crate) fn encode(s: &Snapshot, model_hash: u128) -> Vec<u8> {
 }
 
 /// Decodes bytes made by [`encode`] for the same model (`model_hash`, `n`
-/// joints, `n_parameters` parameter variables). Every corrupted, truncated,
-/// padded or foreign buffer is rejected with the reason.
-pub(crate) fn decode(bytes: &[u8], model_hash: u128, n: usize, n_parameters: usize) -> Result<Snapshot, String> {
+/// joints, `m` motor drives, `n_parameters` parameter variables). Every
+/// corrupted, truncated, padded or foreign buffer is rejected with the reason.
+pub(crate) fn decode(bytes: &[u8], model_hash: u128, n: usize, m: usize, n_parameters: usize) -> Result<Snapshot, String> {
     if bytes.len() < HEADER + CHECKSUM {
         return Err(format!("truncated: {} bytes, an FMU state has at least {}", bytes.len(), HEADER + CHECKSUM));
     }
@@ -102,14 +114,14 @@ pub(crate) fn decode(bytes: &[u8], model_hash: u128, n: usize, n_parameters: usi
         ));
     }
     let mut r = Reader { bytes: &body[HEADER..], at: 0 };
-    let s = read_payload(&mut r, n, n_parameters)?;
+    let s = read_payload(&mut r, n, m, n_parameters)?;
     if r.at != r.bytes.len() {
         return Err(format!("{} unread bytes at the end of the payload", r.bytes.len() - r.at));
     }
     Ok(s)
 }
 
-fn read_payload(r: &mut Reader, n: usize, n_parameters: usize) -> Result<Snapshot, String> {
+fn read_payload(r: &mut Reader, n: usize, m: usize, n_parameters: usize) -> Result<Snapshot, String> {
     let code = r.u8()?;
     let lifecycle = LifeCycle::from_code(code).ok_or_else(|| format!("unknown life-cycle state {code}"))?;
     let start_time = r.f64()?;
@@ -119,24 +131,36 @@ fn read_payload(r: &mut Reader, n: usize, n_parameters: usize) -> Result<Snapsho
     if joints != n {
         return Err(format!("state of a {joints}-joint model; this model has {n} joints"));
     }
+    let rotors = r.u32()? as usize;
+    if rotors != m {
+        return Err(format!("state of a model with {rotors} motor drives; this model has {m}"));
+    }
     let inputs = [r.f64s(n)?, r.f64s(n)?, r.f64s(n)?];
+    let torques = [r.f64s(n)?, r.f64s(n)?, r.f64s(n)?];
     let use_start_values = r.flag()?;
     let q_start = r.f64s(n)?;
     let qd_start = r.f64s(n)?;
+    let theta_m_start = r.f64s(n)?;
+    let omega_m_start = r.f64s(n)?;
+    let static_start = r.flag()?;
     let count = r.u32()? as usize;
     if count != n_parameters {
         return Err(format!("{count} parameter values; this model has {n_parameters}"));
     }
     let parameters = r.f64s(count)?;
-    let state = get_state(r, n)?;
+    let state = get_state(r, n, m)?;
     Ok(Snapshot {
         lifecycle,
         start_time,
         stop_time: has_stop.then_some(stop),
         inputs,
+        torques,
         use_start_values,
         q_start,
         qd_start,
+        theta_m_start,
+        omega_m_start,
+        static_start,
         parameters,
         state,
     })
@@ -164,13 +188,15 @@ fn put_state(w: &mut Writer, s: &State) {
         reaction_moment,
         stick_count,
         stuck_time,
+        motor_torque,
+        gear_torque,
         energy,
         end_point,
         end_point_rigid,
         steps,
     } = s;
     let StepStatistics { accepted, rejected, last_h, next_h } = steps;
-    let Energy { kinetic, potential, spring, drive_work, friction_heat, damping_heat } = energy;
+    let Energy { kinetic, potential, spring, drive_work, friction_heat, damping_heat, rotor_kinetic, motor_heat } = energy;
     w.f64(*time);
     for v in [q, qd, qdd] {
         w.f64s(v);
@@ -192,7 +218,9 @@ fn put_state(w: &mut Writer, s: &State) {
     }
     stick_count.iter().for_each(|c| w.u64(*c));
     w.f64s(stuck_time);
-    w.f64s(&[*kinetic, *potential, *spring, *drive_work, *friction_heat, *damping_heat]);
+    w.f64s(motor_torque);
+    w.f64s(gear_torque);
+    w.f64s(&[*kinetic, *potential, *spring, *drive_work, *friction_heat, *damping_heat, *rotor_kinetic, *motor_heat]);
     w.f64s(end_point.as_slice());
     w.f64s(end_point_rigid.as_slice());
     w.u64(*accepted);
@@ -200,10 +228,11 @@ fn put_state(w: &mut Writer, s: &State) {
     w.f64s(&[*last_h, *next_h]);
 }
 
-fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
+fn get_state(r: &mut Reader, n: usize, m: usize) -> Result<State, String> {
+    let nc = n + m;
     let time = r.f64()?;
-    let (q, qd, qdd) = (r.f64s(n)?, r.f64s(n)?, r.f64s(n)?);
-    let phase = (0..n).map(|_| r.phase()).collect::<Result<Vec<_>, _>>()?;
+    let (q, qd, qdd) = (r.f64s(nc)?, r.f64s(nc)?, r.f64s(nc)?);
+    let phase = (0..nc).map(|_| r.phase()).collect::<Result<Vec<_>, _>>()?;
     Ok(State {
         time,
         q,
@@ -214,15 +243,17 @@ fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
         qd_star: r.f64s(n)?,
         drive_force: r.f64s(n)?,
         damping_force: r.f64s(n)?,
-        friction_force: r.f64s(n)?,
+        friction_force: r.f64s(nc)?,
         normal_load: r.f64s(n)?,
         lever_load: r.f64s(n)?,
-        margin: r.f64s(n)?,
+        margin: r.f64s(nc)?,
         clearance_margin: r.f64s(n)?,
         reaction_force: r.vec3s(n)?,
         reaction_moment: r.vec3s(n)?,
-        stick_count: (0..n).map(|_| r.u64()).collect::<Result<_, _>>()?,
-        stuck_time: r.f64s(n)?,
+        stick_count: (0..nc).map(|_| r.u64()).collect::<Result<_, _>>()?,
+        stuck_time: r.f64s(nc)?,
+        motor_torque: r.f64s(m)?,
+        gear_torque: r.f64s(m)?,
         energy: Energy {
             kinetic: r.f64()?,
             potential: r.f64()?,
@@ -230,6 +261,8 @@ fn get_state(r: &mut Reader, n: usize) -> Result<State, String> {
             drive_work: r.f64()?,
             friction_heat: r.f64()?,
             damping_heat: r.f64()?,
+            rotor_kinetic: r.f64()?,
+            motor_heat: r.f64()?,
         },
         end_point: r.vec3()?,
         end_point_rigid: r.vec3()?,
@@ -319,9 +352,10 @@ mod tests {
     const HASH: u128 = 0x0123_4567_89ab_cdef_fedc_ba98_7654_3210;
 
     /// A snapshot whose every number is distinct, so that a field written in
-    /// the wrong place cannot go unnoticed.
+    /// the wrong place cannot go unnoticed: of the reference arm with motor
+    /// drives on joints 1 and 3 (6 coordinates).
     fn sample() -> Snapshot {
-        let model = Model::reference_rrpr();
+        let model = Model::reference_rrpr_motor();
         let n = model.nq();
         let mut state = State::new(&model);
         let mut x = 0.0;
@@ -342,12 +376,21 @@ mod tests {
             &mut state.normal_load,
             &mut state.lever_load,
             &mut state.stuck_time,
+            &mut state.motor_torque,
+            &mut state.gear_torque,
         ] {
             v.iter_mut().for_each(|e| *e = next());
         }
-        state.margin = vec![f64::INFINITY, next(), -0.0, next()];
-        state.stick_count = vec![3, 0, u64::MAX, 1];
-        state.phase = vec![Phase::Slipping(-1), Phase::Prescribed, Phase::Slipping(1), Phase::Prescribed];
+        state.margin = vec![f64::INFINITY, next(), -0.0, next(), next(), f64::INFINITY];
+        state.stick_count = vec![3, 0, u64::MAX, 1, 7, 8];
+        state.phase = vec![
+            Phase::Slipping(-1),
+            Phase::Prescribed,
+            Phase::Slipping(1),
+            Phase::Prescribed,
+            Phase::Stuck,
+            Phase::Slipping(-1),
+        ];
         state
             .reaction_force
             .iter_mut()
@@ -360,6 +403,8 @@ mod tests {
             drive_work: next(),
             friction_heat: next(),
             damping_heat: next(),
+            rotor_kinetic: next(),
+            motor_heat: next(),
         };
         state.end_point = Vec3::new(next(), next(), next());
         state.end_point_rigid = Vec3::new(next(), next(), next());
@@ -370,9 +415,13 @@ mod tests {
             start_time: -0.5,
             stop_time: Some(2.0),
             inputs: [vec![1.5; n], vec![-2.5; n], vec![f64::MIN_POSITIVE; n]],
+            torques: [vec![0.125; n], vec![-3.5; n], vec![4.5; n]],
             use_start_values: true,
             q_start: vec![0.25; n],
             qd_start: vec![-0.75; n],
+            theta_m_start: vec![12.5; n],
+            omega_m_start: vec![-1.25; n],
+            static_start: true,
             parameters: (0..7).map(|i| i as f64 * 3.5).collect(),
             state,
         }
@@ -382,7 +431,7 @@ mod tests {
     fn round_trip_is_exact() {
         let s = sample();
         let bytes = encode(&s, HASH);
-        let back = decode(&bytes, HASH, 4, 7).expect("decodes");
+        let back = decode(&bytes, HASH, 4, 2, 7).expect("decodes");
         assert_eq!(back, s);
         // Bit-exact, where == is not: -0.0 keeps its sign.
         assert!(back.state.margin[2].is_sign_negative());
@@ -394,7 +443,7 @@ mod tests {
         let mut s = sample();
         s.stop_time = None;
         s.lifecycle = LifeCycle::InitializationMode;
-        assert_eq!(decode(&encode(&s, HASH), HASH, 4, 7).unwrap(), s);
+        assert_eq!(decode(&encode(&s, HASH), HASH, 4, 2, 7).unwrap(), s);
     }
 
     #[test]
@@ -404,7 +453,7 @@ mod tests {
             for flip in [0x01u8, 0x80, 0xff] {
                 let mut bad = bytes.clone();
                 bad[i] ^= flip;
-                assert!(decode(&bad, HASH, 4, 7).is_err(), "flip {flip:#x} at byte {i} not detected");
+                assert!(decode(&bad, HASH, 4, 2, 7).is_err(), "flip {flip:#x} at byte {i} not detected");
             }
         }
     }
@@ -413,21 +462,22 @@ mod tests {
     fn every_truncation_and_padding_is_rejected() {
         let bytes = encode(&sample(), HASH);
         for len in 0..bytes.len() {
-            assert!(decode(&bytes[..len], HASH, 4, 7).is_err(), "prefix of {len} bytes accepted");
+            assert!(decode(&bytes[..len], HASH, 4, 2, 7).is_err(), "prefix of {len} bytes accepted");
         }
         let mut padded = bytes.clone();
         padded.push(0);
-        let err = decode(&padded, HASH, 4, 7).unwrap_err();
+        let err = decode(&padded, HASH, 4, 2, 7).unwrap_err();
         assert!(err.contains("truncated or padded"), "{err}");
     }
 
     #[test]
     fn foreign_buffers_are_rejected_with_the_reason() {
         let bytes = encode(&sample(), HASH);
-        assert!(decode(&bytes, HASH ^ 1, 4, 7).unwrap_err().contains("another model"));
-        assert!(decode(&bytes, HASH, 5, 7).unwrap_err().contains("4-joint"));
-        assert!(decode(&bytes, HASH, 4, 8).unwrap_err().contains("parameter values"));
-        assert!(decode(b"definitely not an FMU state, but long enough", HASH, 4, 7).unwrap_err().contains("magic"));
+        assert!(decode(&bytes, HASH ^ 1, 4, 2, 7).unwrap_err().contains("another model"));
+        assert!(decode(&bytes, HASH, 5, 2, 7).unwrap_err().contains("4-joint"));
+        assert!(decode(&bytes, HASH, 4, 1, 7).unwrap_err().contains("2 motor drives"));
+        assert!(decode(&bytes, HASH, 4, 2, 8).unwrap_err().contains("parameter values"));
+        assert!(decode(b"definitely not an FMU state, but long enough", HASH, 4, 2, 7).unwrap_err().contains("magic"));
 
         // A newer format version, with a valid checksum.
         let mut newer = bytes.clone();
@@ -435,7 +485,7 @@ mod tests {
         let body = newer.len() - 8;
         let checksum = fnv1a_64(&newer[..body]);
         newer[body..].copy_from_slice(&checksum.to_le_bytes());
-        assert!(decode(&newer, HASH, 4, 7).unwrap_err().contains(&format!("version {}", VERSION + 1)));
+        assert!(decode(&newer, HASH, 4, 2, 7).unwrap_err().contains(&format!("version {}", VERSION + 1)));
     }
 
     #[test]
@@ -443,7 +493,7 @@ mod tests {
         let mut s = sample();
         s.state.phase[0] = Phase::Slipping(3);
         let bytes = encode(&s, HASH);
-        assert!(decode(&bytes, HASH, 4, 7).unwrap_err().contains("phase"));
+        assert!(decode(&bytes, HASH, 4, 2, 7).unwrap_err().contains("phase"));
     }
 
     mod properties {
@@ -454,7 +504,7 @@ mod tests {
         use proptest::prelude::*;
 
         fn decodes_or_refuses(bytes: &[u8]) {
-            if let Ok(s) = decode(bytes, HASH, 4, 7) {
+            if let Ok(s) = decode(bytes, HASH, 4, 2, 7) {
                 // Accepted bytes are a whole, well-formed state (the checksum
                 // makes this all but impossible for mutated ones).
                 assert_eq!(s.parameters.len(), 7);

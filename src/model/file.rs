@@ -12,7 +12,7 @@ use super::urdf::read_urdf;
 use super::urdf_model::{JointExtras, UrdfModelSpec};
 use super::{
     ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, IntegratorSettings, JointFriction, JointKind, Link,
-    Model,
+    Model, Rotor,
 };
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
@@ -90,6 +90,20 @@ enum DriveFile {
         #[serde(default)]
         clearance: f64,
     },
+    /// A flexible gear driven by a motor rotor (torque input).
+    Motor {
+        k: f64,
+        #[serde(default)]
+        h: f64,
+        #[serde(default)]
+        clearance: f64,
+        gear_ratio: f64,
+        rotor_inertia: f64,
+        #[serde(default)]
+        motor_viscous: f64,
+        #[serde(default)]
+        motor_coulomb: f64,
+    },
 }
 
 #[derive(Deserialize)]
@@ -145,6 +159,10 @@ struct InertiaFile {
 
 /// The reference manipulator's model file, compiled into the library.
 pub const REFERENCE_RRPR_TOML: &str = include_str!("../../models/reference_rrpr.toml");
+
+/// The reference manipulator with motor drives on joints 1 and 3
+/// (`models/reference_rrpr_motor.toml`), compiled into the library.
+pub const REFERENCE_RRPR_MOTOR_TOML: &str = include_str!("../../models/reference_rrpr_motor.toml");
 
 /// A model file's text with the text of the URDF it names, if any: what an
 /// FMU carries in `resources/` and what its GUID fingerprints.
@@ -264,6 +282,12 @@ impl Model {
     pub fn reference_rrpr() -> Model {
         Model::from_toml_str(REFERENCE_RRPR_TOML).expect("the shipped reference model is valid")
     }
+
+    /// The reference manipulator with motor drives on joints 1 and 3, from
+    /// `models/reference_rrpr_motor.toml`.
+    pub fn reference_rrpr_motor() -> Model {
+        Model::from_toml_str(REFERENCE_RRPR_MOTOR_TOML).expect("the shipped motor reference model is valid")
+    }
 }
 
 fn missing(field: &str, what: &str) -> ModelError {
@@ -346,6 +370,12 @@ fn drive_from_file(d: &DriveFile) -> Drive {
     match *d {
         DriveFile::Rigid => Drive::Rigid,
         DriveFile::Flexible { k, h, clearance } => Drive::Flexible { stiffness: k, damping: h, clearance },
+        DriveFile::Motor { k, h, clearance, gear_ratio, rotor_inertia, motor_viscous, motor_coulomb } => Drive::Motor {
+            stiffness: k,
+            damping: h,
+            clearance,
+            rotor: Rotor { gear_ratio, inertia: rotor_inertia, viscous: motor_viscous, coulomb: motor_coulomb },
+        },
     }
 }
 

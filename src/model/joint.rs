@@ -61,7 +61,7 @@ pub enum Drive {
     /// q_i is a kinematic input; the drive supplies whatever force it takes.
     Rigid,
     /// A massless spring with damping and clearance between the drive end q*_i
-    /// and the link (eq. 2.1).
+    /// and the link (eq. 2.1); q*_i is a kinematic input.
     Flexible {
         /// Stiffness k_i > 0, N/m or N·m/rad.
         stiffness: f64,
@@ -70,20 +70,86 @@ pub enum Drive {
         /// Clearance (backlash) Δ_i ≥ 0, m or rad.
         clearance: f64,
     },
+    /// The spring of a flexible drive, driven by a motor rotor instead of a
+    /// prescribed q*: q* = θ_m/N, the gear force F of (2.1) acts on the link
+    /// and F/N back on the rotor, which obeys
+    /// J_m·θ̈_m = τ_m − F/N − b_m·θ̇_m − τ_f with the motor torque τ_m an
+    /// input (see [`Rotor`]).
+    Motor {
+        /// Stiffness k_i > 0 of the gear, link side, N/m or N·m/rad.
+        stiffness: f64,
+        /// Damping h_i ≥ 0 of the gear, link side, N·s/m or N·m·s/rad.
+        damping: f64,
+        /// Clearance (backlash) Δ_i ≥ 0 of the gear, link side, m or rad.
+        clearance: f64,
+        /// The motor's rotor and its friction.
+        rotor: Rotor,
+    },
+}
+
+/// The rotor of a motor drive: its inertia, its friction and the gear ratio
+/// that turns its angle θ_m into the drive position q* = θ_m/N of (2.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rotor {
+    /// Gear ratio N > 0: rad of the motor per rad of a revolute joint, per m
+    /// of a prismatic one (a ball screw of lead p: 2π/p).
+    pub gear_ratio: f64,
+    /// Rotor inertia J_m > 0 on the motor side (rotor and gear input), kg·m².
+    pub inertia: f64,
+    /// Viscous friction b_m ≥ 0 of motor and gear on the motor side, N·m·s/rad.
+    pub viscous: f64,
+    /// Coulomb friction level τ_c ≥ 0 of motor and gear on the motor side,
+    /// N·m, with true stiction: the rotor stays stuck while the net torque
+    /// on it is within ±τ_c.
+    pub coulomb: f64,
+}
+
+/// The spring of a flexible or motor drive: the three coefficients of (2.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveSpring {
+    /// Stiffness k > 0, N/m or N·m/rad.
+    pub stiffness: f64,
+    /// Damping h ≥ 0, N·s/m or N·m·s/rad.
+    pub damping: f64,
+    /// Clearance Δ ≥ 0, m or rad.
+    pub clearance: f64,
 }
 
 impl Drive {
-    /// True for a flexible drive.
+    /// True for a drive with a spring (flexible or motor): the link's q is
+    /// a coordinate with an equation of motion (3.9), not an input.
     pub fn is_flexible(&self) -> bool {
-        matches!(self, Drive::Flexible { .. })
+        !matches!(self, Drive::Rigid)
     }
 
-    /// The damping h of a flexible drive, 0 for a rigid one.
-    pub fn damping(&self) -> f64 {
-        match self {
-            Drive::Flexible { damping, .. } => *damping,
-            Drive::Rigid => 0.0,
+    /// True for a motor drive.
+    pub fn is_motor(&self) -> bool {
+        matches!(self, Drive::Motor { .. })
+    }
+
+    /// The spring of (2.1) of a flexible or motor drive.
+    #[inline(always)]
+    pub fn spring(&self) -> Option<DriveSpring> {
+        match *self {
+            Drive::Rigid => None,
+            Drive::Flexible { stiffness, damping, clearance } | Drive::Motor { stiffness, damping, clearance, .. } => {
+                Some(DriveSpring { stiffness, damping, clearance })
+            }
         }
+    }
+
+    /// The rotor of a motor drive.
+    #[inline(always)]
+    pub fn rotor(&self) -> Option<Rotor> {
+        match *self {
+            Drive::Motor { rotor, .. } => Some(rotor),
+            _ => None,
+        }
+    }
+
+    /// The damping h of a flexible or motor drive, 0 for a rigid one.
+    pub fn damping(&self) -> f64 {
+        self.spring().map_or(0.0, |s| s.damping)
     }
 }
 

@@ -1,7 +1,7 @@
 //! The immutable description of a manipulator: the chain, its drives, its
 //! friction and the integrator settings.
 
-use super::{ContactGeometry, Drive, Joint, JointKind, Link, Parameter, Placement};
+use super::{ContactGeometry, Joint, JointKind, Link, Parameter, Placement};
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
 
@@ -199,6 +199,14 @@ impl Range {
     pub const SLIDER_LENGTH: Range = Range::positive(100.0);
     /// Slider cross-section b, c; bearing diameters and distances, m.
     pub const CONTACT_SIZE: Range = Range::closed(0.0, 100.0);
+    /// Gear ratio N of a motor drive, rad/rad or rad/m.
+    pub const GEAR_RATIO: Range = Range::positive(1e6);
+    /// Rotor inertia J_m, kg·m².
+    pub const ROTOR_INERTIA: Range = Range::positive(1e3);
+    /// Viscous friction b_m of a motor, N·m·s/rad.
+    pub const MOTOR_VISCOUS: Range = Range::closed(0.0, 1e6);
+    /// Coulomb friction level τ_c of a motor, N·m.
+    pub const MOTOR_COULOMB: Range = Range::closed(0.0, 1e6);
 }
 
 /// Admissible ranges of the drive inputs q*, q̇*, q̈* (m or rad, per s, per
@@ -206,6 +214,11 @@ impl Range {
 /// quantity the engine derives from the inputs far from overflow.
 pub const INPUT_RANGES: [(&str, Range); 3] =
     [("q_star", Range::symmetric(1e3)), ("qd_star", Range::symmetric(1e3)), ("qdd_star", Range::symmetric(1e6))];
+
+/// Admissible ranges of the motor torque input τ_m of a motor drive and of
+/// its first and second time derivatives (N·m, per s, per s²), by name.
+pub const MOTOR_TORQUE_RANGES: [(&str, Range); 3] =
+    [("tau_m", Range::symmetric(1e6)), ("tau_m'", Range::symmetric(1e9)), ("tau_m''", Range::symmetric(1e12))];
 
 impl std::fmt::Display for Range {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -305,10 +318,16 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     validate_placement(&f("placement"), &joint.placement)?;
     check_value(&f("offset"), joint.offset, Range::GEOMETRY)?;
     validate_placement(&f("reported_axes"), &Placement { rotation: joint.reported_axes, translation: Vec3::zeros() })?;
-    if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
-        check_value(&f("drive.k"), stiffness, Parameter::Stiffness.range())?;
-        check_value(&f("drive.h"), damping, Parameter::Damping.range())?;
-        check_value(&f("drive.clearance"), clearance, Parameter::Clearance.range())?;
+    if let Some(spring) = joint.drive.spring() {
+        check_value(&f("drive.k"), spring.stiffness, Parameter::Stiffness.range())?;
+        check_value(&f("drive.h"), spring.damping, Parameter::Damping.range())?;
+        check_value(&f("drive.clearance"), spring.clearance, Parameter::Clearance.range())?;
+    }
+    if let Some(rotor) = joint.drive.rotor() {
+        check_value(&f("drive.gear_ratio"), rotor.gear_ratio, Parameter::GearRatio.range())?;
+        check_value(&f("drive.rotor_inertia"), rotor.inertia, Parameter::RotorInertia.range())?;
+        check_value(&f("drive.motor_viscous"), rotor.viscous, Parameter::MotorViscous.range())?;
+        check_value(&f("drive.motor_coulomb"), rotor.coulomb, Parameter::MotorCoulomb.range())?;
     }
     let Some(friction) = joint.friction else { return Ok(()) };
     let c = friction.coefficients;

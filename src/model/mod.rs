@@ -10,11 +10,11 @@ mod presets;
 pub mod urdf;
 mod urdf_model;
 
-pub use file::{with_urdf_file_name, ModelSource, REFERENCE_RRPR_TOML};
+pub use file::{with_urdf_file_name, ModelSource, REFERENCE_RRPR_MOTOR_TOML, REFERENCE_RRPR_TOML};
 pub use dh::trailing_placement;
 pub use urdf_model::{axis_alignment, JointExtras, UrdfModelSpec};
-pub use joint::{ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, Joint, JointFriction, JointKind, Placement};
+pub use joint::{ContactGeometry, DhJoint, DhRow, Drive, DriveSpring, FrictionCoefficients, Rotor, Joint, JointFriction, JointKind, Placement};
 pub use link::Link;
-pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS};
+pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS, MOTOR_TORQUE_RANGES};
 pub(crate) use manipulator::number;
 pub use parameter::Parameter;

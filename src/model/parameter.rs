@@ -38,11 +38,19 @@ pub enum Parameter {
     LengthB,
     /// Mass of the link moved by the joint.
     Mass,
+    /// Gear ratio N of a motor drive (fixed once a simulation runs).
+    GearRatio,
+    /// Rotor inertia J_m of a motor drive.
+    RotorInertia,
+    /// Viscous friction b_m of a motor drive.
+    MotorViscous,
+    /// Coulomb friction level τ_c of a motor drive.
+    MotorCoulomb,
 }
 
 impl Parameter {
     /// Every parameter, in a fixed order.
-    pub const ALL: [Parameter; 15] = [
+    pub const ALL: [Parameter; 19] = [
         Parameter::Stiffness,
         Parameter::Damping,
         Parameter::Clearance,
@@ -58,6 +66,10 @@ impl Parameter {
         Parameter::LengthA,
         Parameter::LengthB,
         Parameter::Mass,
+        Parameter::GearRatio,
+        Parameter::RotorInertia,
+        Parameter::MotorViscous,
+        Parameter::MotorCoulomb,
     ];
 
     /// The short name used in model files and FMU variable names.
@@ -78,6 +90,10 @@ impl Parameter {
             Parameter::LengthA => "l_A",
             Parameter::LengthB => "l_B",
             Parameter::Mass => "m",
+            Parameter::GearRatio => "gear_ratio",
+            Parameter::RotorInertia => "J_m",
+            Parameter::MotorViscous => "b_m",
+            Parameter::MotorCoulomb => "tau_c",
         }
     }
 
@@ -100,7 +116,18 @@ impl Parameter {
             | Parameter::LengthA
             | Parameter::LengthB => Range::CONTACT_SIZE,
             Parameter::Mass => Range::MASS,
+            Parameter::GearRatio => Range::GEAR_RATIO,
+            Parameter::RotorInertia => Range::ROTOR_INERTIA,
+            Parameter::MotorViscous => Range::MOTOR_VISCOUS,
+            Parameter::MotorCoulomb => Range::MOTOR_COULOMB,
         }
+    }
+
+    /// True for a parameter that may change between communication steps;
+    /// false for one fixed once a simulation runs (the gear ratio: a new N
+    /// would move the drive position q* = θ_m/N by a jump).
+    pub fn is_tunable(self) -> bool {
+        self != Parameter::GearRatio
     }
 }
 
@@ -135,13 +162,25 @@ impl Model {
     /// can switch).
     #[inline]
     pub fn has_clearance(&self) -> bool {
-        self.joints.iter().any(|j| matches!(j.drive, Drive::Flexible { clearance, .. } if clearance > 0.0))
+        self.joints.iter().any(|j| j.drive.spring().is_some_and(|s| s.clearance > 0.0))
     }
 
     /// True if some flexible drive has both a clearance and damping, so that
     /// its flank can release (see [`crate::forces::drive`]).
     pub fn has_damped_clearance(&self) -> bool {
-        self.joints.iter().any(|j| matches!(j.drive, Drive::Flexible { clearance, damping, .. } if clearance > 0.0 && damping != 0.0))
+        self.joints.iter().any(|j| j.drive.spring().is_some_and(|s| s.clearance > 0.0 && s.damping != 0.0))
+    }
+
+    /// The joints (0-based) with a motor drive, in chain order: rotor r of
+    /// the state's coordinates belongs to joint `motor_joints()[r]`.
+    pub fn motor_joints(&self) -> Vec<usize> {
+        (0..self.nq()).filter(|&i| self.joints[i].drive.is_motor()).collect()
+    }
+
+    /// Number of generalized coordinates: the n joint coordinates q, then
+    /// the angle θ_m of each motor drive's rotor.
+    pub fn n_coordinates(&self) -> usize {
+        self.nq() + self.joints.iter().filter(|j| j.drive.is_motor()).count()
     }
 
     /// True if joint `joint` (0-based) has parameter `p`.
@@ -180,13 +219,15 @@ fn slot<'a>(j: &'a mut Joint, link: &'a mut Link, p: Parameter) -> Option<&'a mu
         // A massless link (a URDF link without mass) has no tunable mass.
         return (link.mass > 0.0).then_some(&mut link.mass);
     }
-    if let Drive::Flexible { stiffness, damping, clearance } = &mut j.drive {
-        match p {
-            Parameter::Stiffness => return Some(stiffness),
-            Parameter::Damping => return Some(damping),
-            Parameter::Clearance => return Some(clearance),
-            _ => {}
-        }
+    match (&mut j.drive, p) {
+        (Drive::Flexible { stiffness, .. } | Drive::Motor { stiffness, .. }, Parameter::Stiffness) => return Some(stiffness),
+        (Drive::Flexible { damping, .. } | Drive::Motor { damping, .. }, Parameter::Damping) => return Some(damping),
+        (Drive::Flexible { clearance, .. } | Drive::Motor { clearance, .. }, Parameter::Clearance) => return Some(clearance),
+        (Drive::Motor { rotor, .. }, Parameter::GearRatio) => return Some(&mut rotor.gear_ratio),
+        (Drive::Motor { rotor, .. }, Parameter::RotorInertia) => return Some(&mut rotor.inertia),
+        (Drive::Motor { rotor, .. }, Parameter::MotorViscous) => return Some(&mut rotor.viscous),
+        (Drive::Motor { rotor, .. }, Parameter::MotorCoulomb) => return Some(&mut rotor.coulomb),
+        _ => {}
     }
     let friction = j.friction.as_mut()?;
     let c = &mut friction.coefficients;

@@ -43,7 +43,7 @@
 use super::newmark::PreviousSubStep;
 use super::state::{Phase, State};
 use crate::forces::drive::clearance_margin;
-use crate::model::{Drive, Model};
+use crate::model::Model;
 
 /// Safety factor on the optimal length.
 const SAFETY: f64 = 0.9;
@@ -61,27 +61,47 @@ pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64, p
     let s = model.integrator;
     let n = model.nq();
     let coefficient = (s.beta - 1.0 / 6.0).abs() * h * h;
-    let (qdd0, qdd1, q, q_star, friction, phase) =
-        (&start.qdd[..n], &state.qdd[..n], &state.q[..n], &state.q_star[..n], &state.friction_force[..n], &state.phase[..n]);
+    let (q, q_star, friction) = (&state.q, &state.q_star[..n], &state.friction_force);
     let mut worst: f64 = 0.0;
-    for (i, joint) in model.joints.iter().enumerate().take(n) {
-        let (Drive::Flexible { stiffness, clearance, .. }, Phase::Slipping(_)) = (joint.drive, phase[i]) else { continue };
-        let change = qdd1[i] - qdd0[i];
+    let nc = state.n_coordinates();
+    let mut rotor = 0;
+    for c in 0..nc {
+        // A rotor's error is measured on the link side, θ_m/N, against its
+        // joint's weight; its "stiffness" is the gear's seen from the rotor.
+        let (i, ratio) = if c < n {
+            (c, 1.0)
+        } else {
+            let j = rotor_joint(model, &mut rotor);
+            (j, model.joints[j].drive.rotor().map_or(1.0, |r| r.gear_ratio))
+        };
+        let (Some(spring), Phase::Slipping(_)) = (model.joints[i].drive.spring(), state.phase[c]) else { continue };
+        let stiffness = spring.stiffness / (ratio * ratio);
+        let change = state.qdd[c] - start.qdd[c];
         let mut error = coefficient * change.abs();
         if let Some(PreviousSubStep { qdd: qdd_before, h: h_before, mass_diagonal }) = previous {
-            let mass = mass_diagonal[i];
+            let mass = mass_diagonal[c];
             // q⁗ from the second difference of q̈ over this and the last sub-step.
-            let fourth = 2.0 * (change / h - (qdd0[i] - qdd_before[i]) / h_before) / (h + h_before);
+            let fourth = 2.0 * (change / h - (start.qdd[c] - qdd_before[c]) / h_before) / (h + h_before);
             let velocity_error = (s.gamma - 0.5) * h * change + (0.5 * s.gamma - 1.0 / 6.0) * h * h * h * fourth;
             // In the energy norm of the drive's vibration, a velocity error
             // counts as a position error times 1/ω, ω² = k/M_ii.
             error = error.max(velocity_error.abs() * (mass / stiffness).sqrt());
         }
-        let stretch = clearance_margin(clearance, q_star[i] - q[i]).max(0.0);
-        let weight = stretch + friction[i].abs() / stiffness + 1e-15 * (1.0 + q[i].abs());
-        worst = worst.max(error / (s.error_tolerance * weight * h));
+        let stretch = clearance_margin(spring.clearance, q_star[i] - q[i]).max(0.0);
+        // A rotor's friction causes a stretch of N·τ_f/k.
+        let weight = stretch + ratio * friction[c].abs() / spring.stiffness + 1e-15 * (1.0 + q[c].abs() / ratio);
+        worst = worst.max(error / ratio / (s.error_tolerance * weight * h));
     }
     worst
+}
+
+/// The joint of the next rotor coordinate: the `*rotor`-th motor drive,
+/// counting on.
+#[inline(always)]
+fn rotor_joint(model: &Model, rotor: &mut usize) -> usize {
+    let j = model.joints.iter().enumerate().filter(|(_, j)| j.drive.is_motor()).nth(*rotor).map_or(0, |(i, _)| i);
+    *rotor += 1;
+    j
 }
 
 /// The factor by which the sub-step that gave error ratio `ratio` should be

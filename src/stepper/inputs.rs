@@ -1,6 +1,6 @@
 //! Drive inputs and their Taylor polynomial across a communication interval.
 
-pub use crate::model::INPUT_RANGES;
+pub use crate::model::{INPUT_RANGES, MOTOR_TORQUE_RANGES};
 
 /// Drive inputs at the start of a communication interval. For a flexible
 /// joint they are the drive end q*, q̇*, q̈*; for a rigid joint the prescribed
@@ -13,6 +13,21 @@ pub struct DriveInputs<'a> {
     pub qd_star: &'a [f64],
     /// q̈*, m/s² or rad/s².
     pub qdd_star: &'a [f64],
+}
+
+/// Motor torques τ_m of the motor drives and their first two time
+/// derivatives at the start of a communication interval, one value per
+/// joint (joints without a motor drive ignore theirs), N·m, N·m/s, N·m/s².
+/// Held across the interval as their Taylor polynomial, like the drive
+/// inputs.
+#[derive(Debug, Clone, Copy)]
+pub struct MotorTorques<'a> {
+    /// τ_m, N·m.
+    pub tau_m: &'a [f64],
+    /// dτ_m/dt, N·m/s.
+    pub tau_m_rate: &'a [f64],
+    /// d²τ_m/dt², N·m/s².
+    pub tau_m_accel: &'a [f64],
 }
 
 /// The inputs held across an interval as their second-order Taylor
@@ -38,10 +53,15 @@ impl InputPolynomial {
 
     /// Takes new inputs at `t0`, without allocating.
     pub fn set(&mut self, t0: f64, inputs: &DriveInputs) {
+        self.set_values(t0, [inputs.q_star, inputs.qd_star, inputs.qdd_star]);
+    }
+
+    /// Takes a value and its first two derivatives at `t0`, without allocating.
+    pub fn set_values(&mut self, t0: f64, [x, xd, xdd]: [&[f64]; 3]) {
         self.t0 = t0;
-        self.q.copy_from_slice(inputs.q_star);
-        self.qd.copy_from_slice(inputs.qd_star);
-        self.qdd.copy_from_slice(inputs.qdd_star);
+        self.q.copy_from_slice(x);
+        self.qd.copy_from_slice(xd);
+        self.qdd.copy_from_slice(xdd);
     }
 
     /// (q*, q̇*, q̈*) of joint `i` at time `t`.

@@ -8,7 +8,7 @@ mod simulator;
 mod state;
 mod switching;
 
-pub use inputs::{DriveInputs, InputPolynomial, INPUT_RANGES};
+pub use inputs::{DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 pub use isa::InstructionSet;
-pub use simulator::{InitialState, Simulator, Transition, TRANSITION_LOG_CAPACITY};
+pub use simulator::{InitialState, RotorStart, Simulator, Transition, TRANSITION_LOG_CAPACITY};
 pub use state::{Energy, Phase, State, StepStatistics};

@@ -16,11 +16,12 @@ use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::data::Data;
 use crate::error::{NonConvergence, StepError};
 use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force_over_substep};
+use crate::forces::rotor::{rotor_acceleration_inertia, rotor_torques};
 use crate::forces::friction::{
     contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
     stuck_friction,
 };
-use crate::model::{Drive, Joint, JointKind, Model};
+use crate::model::{Drive, DriveSpring, Joint, JointKind, Model};
 
 /// How many iterates back a failed iteration is judged as still converging.
 const RECENT_ITERATES: usize = 5;
@@ -30,10 +31,20 @@ const RECENT_ITERATES: usize = 5;
 const NEWTON_REUSE: f64 = 0.3;
 
 /// The iteration workspace of the Newmark sub-steps, sized once for a model.
+///
+/// Its unknowns are the accelerations of the free coordinates (see
+/// [`State`]): the slipping joints, then the slipping rotors of motor
+/// drives.
 #[derive(Debug, Clone)]
 pub(crate) struct NewmarkSolver {
-    /// Indices of the joints with an equation of motion in this sub-step.
+    /// Number of joints n.
+    n: usize,
+    /// The motor drives: rotor r is coordinate n + r and turns joint `rotors[r]`.
+    rotors: Vec<usize>,
+    /// Indices of the coordinates with an equation of motion in this sub-step.
     free: Vec<usize>,
+    /// The position of each coordinate in `free`, `usize::MAX` if it is not free.
+    free_position: Vec<usize>,
     /// Newton matrix of the free joints, row-major, LU-factored in place.
     iteration_matrix: Vec<f64>,
     /// Row exchanges of its factorization.
@@ -64,7 +75,8 @@ pub(crate) struct NewmarkSolver {
     /// Inverse-dynamics evaluations since the last [`NewmarkSolver::reset_count`].
     iterations: u64,
     /// Diagonal of the mass matrix of the last Newton matrix built since the
-    /// last restart (empty before one is built): the joints' frequencies for
+    /// last restart, then the rotor inertias (empty before one is built): the
+    /// coordinates' frequencies for
     /// the error estimate, from the state and inputs alone, so that a restored
     /// state continues exactly.
     mass_diagonal: Vec<f64>,
@@ -92,14 +104,23 @@ pub(crate) struct SubStep<'a> {
     pub model: &'a Model,
     pub data: &'a mut Data,
     pub inputs: &'a InputPolynomial,
+    /// The motor torques τ_m, per joint.
+    pub torques: &'a InputPolynomial,
     pub start: &'a State,
 }
 
 impl NewmarkSolver {
-    /// A solver for chains of `n` joints.
-    pub fn new(n: usize) -> NewmarkSolver {
+    /// A solver for `model`'s chain: n joints and the rotors of its motor
+    /// drives.
+    pub fn new(model: &Model) -> NewmarkSolver {
+        let joints = model.nq();
+        let rotors = model.motor_joints();
+        let n = model.n_coordinates();
         NewmarkSolver {
+            n: joints,
+            rotors,
             free: Vec::with_capacity(n),
+            free_position: vec![usize::MAX; n],
             iteration_matrix: vec![0.0; n * n],
             pivots: vec![0; n],
             newton_valid: false,
@@ -114,8 +135,22 @@ impl NewmarkSolver {
             newton_step: vec![0.0; n],
             iterations: 0,
             mass_diagonal: Vec::with_capacity(n),
-            engaged: vec![false; n],
-            engagement_changes: vec![0; n],
+            engaged: vec![false; joints],
+            engagement_changes: vec![0; joints],
+        }
+    }
+
+    /// The joints of the motor drives: rotor r (coordinate n + r) turns joint `rotors()[r]`.
+    pub fn rotors(&self) -> &[usize] {
+        &self.rotors
+    }
+
+    /// The joint a coordinate belongs to: itself, or the joint a rotor turns.
+    pub fn joint_of(&self, coordinate: usize) -> usize {
+        if coordinate < self.n {
+            coordinate
+        } else {
+            self.rotors[coordinate - self.n]
         }
     }
 
@@ -190,12 +225,12 @@ impl NewmarkSolver {
     /// than two corrections.
     #[inline(always)]
     pub fn solve(&mut self, step: SubStep, state: &mut State, t: f64) -> Result<(), StepError> {
-        let SubStep { model, data, inputs, start } = step;
+        let SubStep { model, data, inputs, torques, start } = step;
         let h = t - start.time;
         let settings = model.integrator;
         let (beta, gamma) = (settings.beta, settings.gamma);
         state.time = t;
-        self.predict(model, inputs, start, state, t, h);
+        self.predict(model, inputs, torques, start, state, t, h);
         let nf = self.free.len();
         // Fixed sub-steps differ in length by rounding only; error-controlled
         // ones change gradually, and a Newton matrix of a nearby length still
@@ -225,10 +260,13 @@ impl NewmarkSolver {
         let open = if h > 0.0 { &start.clearance_margin[..] } else { &[] };
         self.engagement_changes.fill(0);
         for iteration in 1..=settings.max_iterations {
-            // q and q̇ of the free joints follow their q̈ (see `newmark`).
+            // q and q̇ of the free coordinates follow their q̈ (see `newmark`),
+            // the drive positions of motor drives their rotors.
             // The DH transforms follow q (skipped when only rounding moved it).
-            update_joint_transforms(model, data, &state.q);
-            rnea(model, data, &state.q, &state.qd, &state.qdd);
+            self.turn_drive_ends(model, state);
+            let n = self.n;
+            update_joint_transforms(model, data, &state.q[..n]);
+            rnea(model, data, &state.q[..n], &state.qd[..n], &state.qdd[..n]);
             // Friction needs the reactions of the joints with friction; the
             // others are reported at the end of the interval.
             for (i, joint) in model.joints.iter().enumerate() {
@@ -236,7 +274,8 @@ impl NewmarkSolver {
                     joint_reaction(model, data, i);
                 }
             }
-            let (residual, merit, worst_joint) = self.joint_forces(model, data, state, open, iteration == 1);
+            let (residual, merit, worst) = self.joint_forces(model, data, state, open, iteration == 1);
+            let worst_joint = self.joint_of(worst);
             self.iterations += 1;
             if !residual.is_finite() {
                 return Err(StepError::NonFiniteState { time: t });
@@ -275,6 +314,7 @@ impl NewmarkSolver {
                 crba(model, data);
                 self.mass_diagonal.clear();
                 self.mass_diagonal.extend((0..model.nq()).map(|i| data.mass_matrix[(i, i)]));
+                self.mass_diagonal.extend(self.rotors.iter().filter_map(|&j| model.joints[j].drive.rotor()).map(|r| r.inertia));
                 self.factor_newton_matrix(model, data, state, open, h, beta, gamma)?;
                 self.newton_valid = true;
                 self.newton_h = h;
@@ -299,6 +339,9 @@ impl NewmarkSolver {
     fn diagnose(&self, model: &Model, joint: usize, iterations: usize, residual: f64, contracting: bool) -> NonConvergence {
         if self.engagement_changes[joint] > 0 {
             NonConvergence::DriveSwitching
+        } else if model.joints[joint].drive.rotor().is_some_and(|r| r.coulomb > 0.0) && iterations > 2 && !contracting {
+            // The rotor's Coulomb friction may change form as well.
+            NonConvergence::Friction
         } else if iterations <= 2 || contracting || residual < 1e-12 || model.joints[joint].friction.is_none() {
             NonConvergence::IterationLimit
         } else {
@@ -312,7 +355,8 @@ impl NewmarkSolver {
     /// the Lagrange extrapolation of the last three refined accelerations,
     /// and the q, q̇ that the Newmark relations give for it.
     #[inline(always)]
-    fn predict(&mut self, model: &Model, inputs: &InputPolynomial, s: &State, st: &mut State, t: f64, h: f64) {
+    #[allow(clippy::too_many_arguments)]
+    fn predict(&mut self, model: &Model, inputs: &InputPolynomial, torques: &InputPolynomial, s: &State, st: &mut State, t: f64, h: f64) {
         let n = model.nq();
         // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
         let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
@@ -325,36 +369,57 @@ impl NewmarkSolver {
                 h * (h + h1) / (h2 * (h1 + h2)),
             ],
         };
-        // Slices of length n let the compiler drop the per-index bounds checks.
-        let (q, qd, qdd) = (&mut st.q[..n], &mut st.qd[..n], &mut st.qdd[..n]);
-        let (q_star, qd_star, phase) = (&mut st.q_star[..n], &mut st.qd_star[..n], &st.phase[..n]);
-        let (start_q, start_qd, start_qdd) = (&s.q[..n], &s.qd[..n], &s.qdd[..n]);
+        let nc = n + self.rotors.len();
+        // Slices of known length let the compiler drop the per-index bounds checks.
+        let (q, qd, qdd) = (&mut st.q[..nc], &mut st.qd[..nc], &mut st.qdd[..nc]);
+        let (q_star, qd_star, phase) = (&mut st.q_star[..n], &mut st.qd_star[..n], &st.phase[..nc]);
+        let (start_q, start_qd, start_qdd) = (&s.q[..nc], &s.qd[..nc], &s.qdd[..nc]);
         let (beta, gamma) = (model.integrator.beta, model.integrator.gamma);
         let [h0, h1, h2] = &self.qdd_history;
-        let (h0, h1, h2) = (&h0[..n], &h1[..n], &h2[..n]);
+        let (h0, h1, h2) = (&h0[..nc], &h1[..nc], &h2[..nc]);
         self.free.clear();
-        for i in 0..n {
-            let (qs, qds, qdds) = inputs.eval(i, t);
-            q_star[i] = qs;
-            qd_star[i] = qds;
-            match phase[i] {
-                Phase::Prescribed => {
+        for i in 0..nc {
+            if i < n {
+                // A motor drive's q* follows its rotor (`turn_drive_ends`).
+                let (qs, qds, qdds) = inputs.eval(i, t);
+                q_star[i] = qs;
+                qd_star[i] = qds;
+                if phase[i] == Phase::Prescribed {
                     q[i] = qs;
                     qd[i] = qds;
                     qdd[i] = qdds;
+                    continue;
                 }
+            } else {
+                st.motor_torque[i - n] = torques.eval(self.rotors[i - n], t).0;
+            }
+            match phase[i] {
                 Phase::Stuck => {
                     q[i] = start_q[i];
                     qd[i] = 0.0;
                     qdd[i] = 0.0;
+                    self.free_position[i] = usize::MAX;
                 }
                 Phase::Slipping(_) => {
+                    self.free_position[i] = self.free.len();
                     self.free.push(i);
                     let qdd_i = w0 * h0[i] + w1 * h1[i] + w2 * h2[i];
                     qdd[i] = qdd_i;
                     (q[i], qd[i]) = newmark_step(start_q[i], start_qd[i], start_qdd[i], qdd_i, h, beta, gamma);
                 }
+                Phase::Prescribed => self.free_position[i] = usize::MAX,
             }
+        }
+    }
+
+    /// Sets the drive position q* = θ_m/N and rate q̇* = θ̇_m/N of every
+    /// motor drive from its rotor.
+    #[inline(always)]
+    fn turn_drive_ends(&self, model: &Model, st: &mut State) {
+        for (r, &j) in self.rotors.iter().enumerate() {
+            let Some(rotor) = model.joints[j].drive.rotor() else { continue };
+            st.q_star[j] = st.q[self.n + r] / rotor.gear_ratio;
+            st.qd_star[j] = st.qd[self.n + r] / rotor.gear_ratio;
         }
     }
 
@@ -402,16 +467,21 @@ impl NewmarkSolver {
         gamma: f64,
     ) -> Result<(), StepError> {
         let nf = self.free.len();
-        for (a, &s) in self.free.iter().enumerate() {
+        let n = self.n;
+        for a in 0..nf {
+            let s = self.free[a];
+            if s >= n {
+                self.factor_rotor_row(model, st, open, a, s, h, beta, gamma);
+                continue;
+            }
             for (b, &j) in self.free.iter().enumerate() {
-                self.iteration_matrix[a * nf + b] = data.mass_matrix[(s, j)];
+                // Rotors come after the joints; the gear couples them (`factor_rotor_row`).
+                self.iteration_matrix[a * nf + b] = if j < n { data.mass_matrix[(s, j)] } else { 0.0 };
             }
             let joint = &model.joints[s];
-            if let Drive::Flexible { stiffness, damping, clearance } = joint.drive {
-                let open_at_start = open.get(s).is_some_and(|&m| m < 0.0);
-                let drive =
-                    drive_force_over_substep(stiffness, damping, clearance, open_at_start, st.q_star[s], st.qd_star[s], st.q[s], st.qd[s]);
-                self.iteration_matrix[a * nf + a] += acceleration_stiffness(stiffness, damping, drive.engaged, h, beta, gamma);
+            if let Some(spring) = joint.drive.spring() {
+                let DriveSpringTerms { stiffness, .. } = spring_terms(spring, open, s, st, h, beta, gamma);
+                self.iteration_matrix[a * nf + a] += stiffness;
             }
             let (Some(friction), Phase::Slipping(d)) = (joint.friction.as_ref(), st.phase[s]) else { continue };
             self.iteration_matrix[a * nf + a] +=
@@ -420,6 +490,10 @@ impl NewmarkSolver {
             let rt = data.rotation[s + 1].transpose();
             let p = reaction_point(model, data, s);
             for (b, &j) in self.free.iter().enumerate() {
+                if j >= n {
+                    // A rotor's acceleration moves no link.
+                    continue;
+                }
                 // Change of joint s's reaction (joint frame, about its
                 // reaction point) per unit q̈_j.
                 let w = data.composite[s.max(j)] * motion_subspace(model, data, j);
@@ -436,12 +510,36 @@ impl NewmarkSolver {
         }
     }
 
+    /// Row `a` of the Newton matrix for the free rotor coordinate `c`, and
+    /// the gear's coupling to its joint: the rotor's equation resists θ̈_m
+    /// with J_m + γh·b_m, and the gear spring, whose end q* = θ_m/N moves by
+    /// βh²/N and q̇* by γh/N per unit θ̈_m, with K/N² (K = γh·h_d + βh²·k of
+    /// [`acceleration_stiffness`]); a unit θ̈_m raises the link's drive force
+    /// by K/N and a unit q̈ lowers the rotor's load F/N by K/N.
+    #[allow(clippy::too_many_arguments)]
+    fn factor_rotor_row(&mut self, model: &Model, st: &State, open: &[f64], a: usize, c: usize, h: f64, beta: f64, gamma: f64) {
+        let nf = self.free.len();
+        let j = self.rotors[c - self.n];
+        let drive = model.joints[j].drive;
+        let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { unreachable!("rotors belong to motor drives") };
+        let gear = spring_terms(spring, open, j, st, h, beta, gamma).stiffness;
+        let ratio = rotor.gear_ratio;
+        self.iteration_matrix[a * nf..(a + 1) * nf].fill(0.0);
+        self.iteration_matrix[a * nf + a] = rotor_acceleration_inertia(&rotor, h, gamma) + gear / (ratio * ratio);
+        let b = self.free_position[j];
+        if b != usize::MAX {
+            self.iteration_matrix[a * nf + b] = -gear / ratio;
+            self.iteration_matrix[b * nf + a] = -gear / ratio;
+        }
+    }
+
     /// Drive forces (2.1), contact loads and friction (3.11)–(3.15), phase
     /// margins (3.16) and clearance margins (2.1) of every joint from the reactions in the workspace;
     /// fills the residuals of the free joints into `self.correction` and
     /// returns the largest one relative to its joint's force scale, the
-    /// sum of the squares of these relative residuals and the joint (0-based)
-    /// of the largest. Counts the changes of each drive's engagement since
+    /// sum of the squares of these relative residuals and the coordinate
+    /// (0-based) of the largest; then the rotors' torques, friction and
+    /// margins and the residuals of the free ones. Counts the changes of each drive's engagement since
     /// the last call, unless `first` (the first iterate of a sub-step).
     #[inline(always)]
     /// `open` holds the clearance margins at the sub-step's start (empty for
@@ -455,7 +553,7 @@ impl NewmarkSolver {
         let (friction_force, margin) = (&mut st.friction_force[..n], &mut st.margin[..n]);
         let clearance_edge = &mut st.clearance_margin[..n];
         let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
-        let correction = &mut self.correction[..n];
+        let correction = &mut self.correction[..n + self.rotors.len()];
         let (engaged, engagement_changes) = (&mut self.engaged[..n], &mut self.engagement_changes[..n]);
         let mut worst: f64 = 0.0;
         let mut worst_joint = 0;
@@ -483,7 +581,7 @@ impl NewmarkSolver {
                     margin[i] = f64::INFINITY;
                     clearance_edge[i] = f64::INFINITY;
                 }
-                Drive::Flexible { stiffness, damping, clearance } => {
+                Drive::Flexible { stiffness, damping, clearance } | Drive::Motor { stiffness, damping, clearance, .. } => {
                     let open_at_start = open.get(i).is_some_and(|&m| m < 0.0);
                     let drive =
                         drive_force_over_substep(stiffness, damping, clearance, open_at_start, q_star[i], qd_star[i], q[i], qd[i]);
@@ -523,6 +621,28 @@ impl NewmarkSolver {
                 }
             }
         }
+        // The rotors of motor drives, against the gear forces just computed.
+        for (r, &j) in self.rotors.iter().enumerate() {
+            let c = n + r;
+            let Some(rotor) = model.joints[j].drive.rotor() else { continue };
+            let slip = match st.phase[c] {
+                Phase::Slipping(d) => Some(d),
+                _ => None,
+            };
+            let torques = rotor_torques(&rotor, st.motor_torque[r], st.drive_force[j], st.qd[c], st.qdd[c], slip);
+            st.friction_force[c] = torques.friction;
+            st.margin[c] = torques.margin;
+            st.gear_torque[r] = st.drive_force[j] / rotor.gear_ratio;
+            if slip.is_some() {
+                let relative = torques.residual / torques.scale.max(f64::MIN_POSITIVE);
+                if relative.abs() > worst {
+                    (worst, worst_joint) = (relative.abs(), c);
+                }
+                merit += relative * relative;
+                correction[k] = torques.residual;
+                k += 1;
+            }
+        }
         (worst, merit, worst_joint)
     }
 }
@@ -549,4 +669,20 @@ fn joint_load_scale(data: &Data, joint: &Joint, i: usize) -> f64 {
         JointKind::Prismatic => data.force[i].norm(),
         JointKind::Revolute => data.moment[i].norm(),
     }
+}
+
+/// The drive spring's resistance to its joint's acceleration in a sub-step.
+struct DriveSpringTerms {
+    /// γh·h_d + βh²·k while the drive transmits force, 0 otherwise.
+    stiffness: f64,
+}
+
+/// [`DriveSpringTerms`] of joint `i`'s drive spring in the current iterate
+/// `st` of a sub-step of length `h` (`open`: see [`drive_force_over_substep`]).
+#[inline(always)]
+fn spring_terms(spring: DriveSpring, open: &[f64], i: usize, st: &State, h: f64, beta: f64, gamma: f64) -> DriveSpringTerms {
+    let DriveSpring { stiffness, damping, clearance } = spring;
+    let open_at_start = open.get(i).is_some_and(|&m| m < 0.0);
+    let drive = drive_force_over_substep(stiffness, damping, clearance, open_at_start, st.q_star[i], st.qd_star[i], st.q[i], st.qd[i]);
+    DriveSpringTerms { stiffness: acceleration_stiffness(stiffness, damping, drive.engaged, h, beta, gamma) }
 }

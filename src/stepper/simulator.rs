@@ -1,33 +1,57 @@
 //! The simulator: a model, its workspace and its state, advanced over
 //! communication intervals by the iterative Newmark stepper.
 
-use super::inputs::{DriveInputs, InputPolynomial, INPUT_RANGES};
+use super::inputs::{DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
 use super::switching::StepControl;
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use super::newmark::{NewmarkSolver, SubStep};
-use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics};
-use crate::algorithms::rnea::joint_reactions;
+use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics, update_joint_transforms};
+use crate::algorithms::rnea::{joint_reactions, rnea};
 use crate::data::Data;
 use crate::error::{ModelError, StepError};
 use crate::forces::drive::spring_energy;
 use crate::forces::friction::holds_statically;
+use crate::forces::rotor::rotor_holds_statically;
 use crate::model::{Drive, Model};
 
-/// A phase change of one joint, for event logs.
+/// A phase change of one coordinate, for event logs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition {
     /// Time of the change, s.
     pub time: f64,
-    /// Joint number, 0-based.
+    /// Coordinate, 0-based: joint `joint` for `joint` < n, else the rotor
+    /// of the (`joint` − n)-th motor drive (see [`State`]).
     pub joint: usize,
     /// Phase before.
     pub from: Phase,
     /// Phase after.
     pub to: Phase,
-    /// Drive force F^d at the transition.
+    /// Drive force F^d at the transition; for a rotor the motor torque τ_m.
     pub drive_force: f64,
+}
+
+/// Where the rotors of motor drives start (see [`Simulator::set_rotor_start`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum RotorStart {
+    /// At rest, with the gear spring unloaded: θ_m = N·q, θ̇_m = 0.
+    #[default]
+    Unloaded,
+    /// At rest, turned so that the gear spring holds its link at rest
+    /// against gravity and the other loads at the start:
+    /// θ_m = N·(q + F/k + sgn(F)·Δ) with F the joint's inverse-dynamics
+    /// force with every spring-driven joint at rest. The motor torque that
+    /// holds it there is F/N ([`State::drive_force`] / N).
+    StaticEquilibrium,
+    /// At the given angles θ_m (rad) and speeds θ̇_m (rad/s), one value per
+    /// joint (joints without a motor drive ignore theirs).
+    At {
+        /// Rotor angles, rad.
+        theta_m: Vec<f64>,
+        /// Rotor speeds, rad/s.
+        omega_m: Vec<f64>,
+    },
 }
 
 /// How many transitions are kept between two calls of
@@ -58,11 +82,15 @@ pub struct Simulator {
     /// Snapshot at the start of the current interval, restored on error.
     pub(crate) saved: State,
     pub(crate) inputs: InputPolynomial,
+    /// The motor torques τ_m of the motor drives, per joint.
+    pub(crate) torques: InputPolynomial,
+    /// Where the rotors start at the next initialization.
+    pub(crate) rotor_start: RotorStart,
     /// The Newmark iteration's workspace.
     pub(crate) solver: NewmarkSolver,
     /// Scratch joint vector.
     pub(crate) scratch: Vec<f64>,
-    /// For each joint, the instant (see `instant`) at which its phase was
+    /// For each coordinate, the instant (see `instant`) at which its phase was
     /// last decided.
     pub(crate) decided: Vec<u64>,
     /// Number of the current instant of phase decisions; a new one starts
@@ -87,9 +115,11 @@ impl Simulator {
             saved: state.clone(),
             state,
             inputs: InputPolynomial::new(n),
-            solver: NewmarkSolver::new(n),
+            torques: InputPolynomial::new(n),
+            rotor_start: RotorStart::Unloaded,
+            solver: NewmarkSolver::new(&model),
             scratch: vec![0.0; n],
-            decided: vec![0; n],
+            decided: vec![0; model.n_coordinates()],
             instant: 1,
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
             transitions_dropped: 0,
@@ -179,6 +209,53 @@ impl Simulator {
         self.transitions_dropped = 0;
     }
 
+    /// Sets the motor torques τ_m of the motor drives and their first two
+    /// time derivatives, one value per joint (joints without a motor drive
+    /// ignore theirs), held as their Taylor polynomial from the current time
+    /// over the next intervals until set again; before
+    /// [`Simulator::initialize`], the torques at its start. Checked like the
+    /// drive inputs: a wrong length, a value that is not finite or outside
+    /// [`MOTOR_TORQUE_RANGES`] is refused and nothing changes.
+    pub fn set_motor_torques(&mut self, torques: &MotorTorques) -> Result<(), StepError> {
+        let n = self.model.nq();
+        let values = [torques.tau_m, torques.tau_m_rate, torques.tau_m_accel];
+        for ((field, range), values) in MOTOR_TORQUE_RANGES.into_iter().zip(values) {
+            if values.len() != n {
+                return Err(StepError::InputLength { field, expected: n, got: values.len() });
+            }
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
+            }
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
+                return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
+            }
+        }
+        self.torques.set_values(self.state.time, values);
+        Ok(())
+    }
+
+    /// Where the rotors of motor drives start at the next
+    /// [`Simulator::initialize`] (default [`RotorStart::Unloaded`]).
+    pub fn set_rotor_start(&mut self, start: RotorStart) -> Result<(), ModelError> {
+        if let RotorStart::At { theta_m, omega_m } = &start {
+            let n = self.model.nq();
+            for (field, v) in [("theta_m_start", theta_m), ("omega_m_start", omega_m)] {
+                if v.len() != n {
+                    return Err(ModelError::Invalid { field: field.into(), reason: format!("{} values for {n} joints", v.len()) });
+                }
+                if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                    return Err(ModelError::InvalidParameter {
+                        field: format!("{field}[{}]", i + 1),
+                        value: *x,
+                        reason: "must be a finite number".into(),
+                    });
+                }
+            }
+        }
+        self.rotor_start = start;
+        Ok(())
+    }
+
     fn check_model(&mut self) -> Result<(), StepError> {
         if !self.model_checked {
             self.model.validate().map_err(|e| StepError::InvalidModel { reason: e.to_string() })?;
@@ -247,6 +324,7 @@ impl Simulator {
 
     fn initialize_inner(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
         self.inputs.set(t0, inputs);
+        self.torques.t0 = t0;
         forget_joint_transforms(&mut self.data);
         let st = &mut self.state;
         st.time = t0;
@@ -260,21 +338,17 @@ impl Simulator {
                     st.q[i] = inputs.q_star[i];
                     st.qd[i] = inputs.qd_star[i];
                 }
-                Drive::Flexible { .. } => {
+                Drive::Flexible { .. } | Drive::Motor { .. } => {
                     let (q, qd) = initial.map_or((inputs.q_star[i], 0.0), |s| (s.q[i], s.qd[i]));
                     st.q[i] = q;
                     st.qd[i] = qd;
-                    st.phase[i] = if qd != 0.0 {
-                        Phase::Slipping(if qd > 0.0 { 1 } else { -1 })
-                    } else if holds_statically(joint.friction.as_ref()) {
-                        Phase::Stuck
-                    } else {
-                        Phase::Slipping(1)
-                    };
+                    st.phase[i] = phase_at_start(qd, holds_statically(joint.friction.as_ref()));
                 }
             }
             st.qdd[i] = 0.0;
         }
+        self.start_rotors(inputs);
+        let st = &mut self.state;
         for (count, phase) in st.stick_count.iter_mut().zip(&st.phase) {
             *count = u64::from(*phase == Phase::Stuck);
         }
@@ -285,6 +359,52 @@ impl Simulator {
         self.update_reported();
         self.initialized = true;
         Ok(())
+    }
+
+    /// Places the rotors of the motor drives as [`Simulator::rotor_start`]
+    /// says, from the joints' start state in `self.state`, and sets their
+    /// phases and the drive positions q* = θ_m/N.
+    fn start_rotors(&mut self, inputs: &DriveInputs) {
+        let rotors = self.solver.rotors();
+        if rotors.is_empty() {
+            return;
+        }
+        let n = self.model.nq();
+        if self.rotor_start == RotorStart::StaticEquilibrium {
+            // The forces that hold every spring-driven joint at rest, the
+            // rigid ones moving as prescribed.
+            for (i, joint) in self.model.joints.iter().enumerate() {
+                self.scratch[i] = if joint.drive.is_flexible() { 0.0 } else { inputs.qdd_star[i] };
+            }
+            let st = &self.state;
+            let qd: Vec<f64> = (0..n).map(|i| if self.model.joints[i].drive.is_flexible() { 0.0 } else { st.qd[i] }).collect();
+            update_joint_transforms(&self.model, &mut self.data, &st.q[..n]);
+            rnea(&self.model, &mut self.data, &st.q[..n], &qd, &self.scratch);
+            forget_joint_transforms(&mut self.data);
+        }
+        let st = &mut self.state;
+        for (r, &j) in rotors.iter().enumerate() {
+            let drive = self.model.joints[j].drive;
+            let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { continue };
+            let ratio = rotor.gear_ratio;
+            let c = n + r;
+            let (theta, omega) = match &self.rotor_start {
+                RotorStart::Unloaded => (ratio * st.q[j], 0.0),
+                RotorStart::StaticEquilibrium => {
+                    // (2.1) at rest: F = k·(e − σΔ) with e = q* − q.
+                    let force = self.data.tau[j];
+                    let deflection = if force == 0.0 { 0.0 } else { force / spring.stiffness + spring.clearance.copysign(force) };
+                    (ratio * (st.q[j] + deflection), 0.0)
+                }
+                RotorStart::At { theta_m, omega_m } => (theta_m[j], omega_m[j]),
+            };
+            st.q[c] = theta;
+            st.qd[c] = omega;
+            st.qdd[c] = 0.0;
+            st.phase[c] = phase_at_start(omega, rotor_holds_statically(&rotor));
+            st.q_star[j] = theta / ratio;
+            st.qd_star[j] = omega / ratio;
+        }
     }
 
     /// Advances the state over one communication interval of length
@@ -330,6 +450,8 @@ impl Simulator {
     fn advance_inner(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
         let t0 = self.state.time;
         self.inputs.set(t0, inputs);
+        // The motor torques were set at this communication point (or before).
+        self.torques.t0 = t0;
         // Inputs may differ from the previous interval's extrapolation: make
         // accelerations and phases consistent with them before stepping. The
         // drives did the work of that jump of q* (or of a rigid joint's q, q̇).
@@ -440,7 +562,8 @@ impl Simulator {
     /// `self.state` (see [`NewmarkSolver::solve`]).
     #[inline(always)]
     pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
-        let step = SubStep { model: &self.model, data: &mut self.data, inputs: &self.inputs, start: &self.start };
+        let step =
+            SubStep { model: &self.model, data: &mut self.data, inputs: &self.inputs, torques: &self.torques, start: &self.start };
         self.solver.solve(step, &mut self.state, t)
     }
 
@@ -478,17 +601,22 @@ impl Simulator {
     /// frame-0 kinematics of the current coordinates in the workspace.
     fn update_energies(&mut self) {
         let (model, st) = (&self.model, &mut self.state);
-        forward_kinematics(model, &mut self.data, &st.q);
-        st.energy.kinetic = kinetic_energy(model, &self.data, &st.qd);
+        let n = model.nq();
+        forward_kinematics(model, &mut self.data, &st.q[..n]);
+        st.energy.kinetic = kinetic_energy(model, &self.data, &st.qd[..n]);
         st.energy.potential = potential_energy(model, &self.data);
         st.energy.spring = model
             .joints
             .iter()
             .enumerate()
-            .map(|(i, j)| match j.drive {
-                Drive::Flexible { stiffness, clearance, .. } => spring_energy(stiffness, clearance, st.q_star[i], st.q[i]),
-                Drive::Rigid => 0.0,
-            })
+            .map(|(i, j)| j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i])))
+            .sum();
+        st.energy.rotor_kinetic = self
+            .solver
+            .rotors()
+            .iter()
+            .enumerate()
+            .filter_map(|(r, &j)| model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r]))
             .sum();
     }
 
@@ -497,10 +625,24 @@ impl Simulator {
             return;
         }
         if self.transitions.len() < TRANSITION_LOG_CAPACITY {
-            let drive_force = self.state.drive_force[joint];
+            let n = self.model.nq();
+            let drive_force = if joint < n { self.state.drive_force[joint] } else { self.state.motor_torque[joint - n] };
             self.transitions.push(Transition { time: self.state.time, joint, from, to, drive_force });
         } else {
             self.transitions_dropped += 1;
         }
+    }
+}
+
+/// The phase a spring-driven joint or a rotor starts in at velocity `qd`:
+/// slipping in its direction if it moves, else stuck if its friction
+/// `holds` it, else slipping (its direction decided by the first evaluation).
+fn phase_at_start(qd: f64, holds: bool) -> Phase {
+    if qd != 0.0 {
+        Phase::Slipping(if qd > 0.0 { 1 } else { -1 })
+    } else if holds {
+        Phase::Stuck
+    } else {
+        Phase::Slipping(1)
     }
 }

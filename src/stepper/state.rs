@@ -18,19 +18,28 @@ pub enum Phase {
 
 /// Everything that evolves, plus the reported quantities at the current time.
 /// Restoring a `State` restores the exact continuation.
+///
+/// **Coordinates.** The vectors `q`, `qd`, `qdd`, `phase`, `margin`,
+/// `friction_force`, `stick_count` and `stuck_time` run over the model's
+/// generalized coordinates ([`Model::n_coordinates`]): the n joint
+/// coordinates, then the rotor angle θ_m of each motor drive in chain order
+/// ([`Model::motor_joints`]). The other per-joint vectors have n entries;
+/// `motor_torque` has one per motor drive.
 #[derive(Debug, Clone, PartialEq)]
 pub struct State {
     /// Time, s.
     pub time: f64,
-    /// Joint coordinates q, m or rad.
+    /// Coordinates: joint coordinates q (m or rad), then rotor angles θ_m (rad).
     pub q: Vec<f64>,
-    /// Joint velocities q̇.
+    /// Their velocities q̇, θ̇_m.
     pub qd: Vec<f64>,
-    /// Joint accelerations q̈.
+    /// Their accelerations q̈, θ̈_m.
     pub qdd: Vec<f64>,
-    /// Phase of every joint.
+    /// Phase of every coordinate (a rotor's: stuck or slipping in its
+    /// motor friction).
     pub phase: Vec<Phase>,
-    /// Drive input q* at the current time (prescribed q for rigid joints).
+    /// Drive position q* at the current time: the input of a flexible drive,
+    /// the prescribed q of a rigid one, θ_m/N of a motor drive.
     pub q_star: Vec<f64>,
     /// Drive input rate q̇* at the current time.
     pub qd_star: Vec<f64>,
@@ -39,7 +48,9 @@ pub struct State {
     /// Damping part h·δ·(q̇* − q̇) of the drive force.
     pub damping_force: Vec<f64>,
     /// Friction force F^f, signed so that F^d − F^f is the generalized force
-    /// (3.10); while stuck, the friction that holds the joint.
+    /// (3.10); while stuck, the friction that holds the joint. For a rotor
+    /// coordinate, the motor's Coulomb friction τ_f (while stuck, the torque
+    /// that holds the rotor), N·m.
     pub friction_force: Vec<f64>,
     /// Normal load of the joint's contact, N.
     pub normal_load: Vec<f64>,
@@ -56,11 +67,15 @@ pub struct State {
     pub reaction_force: Vec<Vec3>,
     /// Joint moment about the reaction reference point, in the same frame, N·m.
     pub reaction_moment: Vec<Vec3>,
-    /// Number of stiction phases each joint has entered since initialization
-    /// (a joint that starts stuck counts one).
+    /// Number of stiction phases each coordinate has entered since
+    /// initialization (one that starts stuck counts one).
     pub stick_count: Vec<u64>,
-    /// Total time each joint has spent stuck since initialization, s.
+    /// Total time each coordinate has spent stuck since initialization, s.
     pub stuck_time: Vec<f64>,
+    /// Motor torque τ_m of each motor drive at the current time, N·m.
+    pub motor_torque: Vec<f64>,
+    /// Gear torque F/N on the rotor of each motor drive, N·m.
+    pub gear_torque: Vec<f64>,
     /// Energy account.
     pub energy: Energy,
     /// End point E of the flexible manipulator in frame 0, m.
@@ -101,18 +116,23 @@ pub struct Energy {
     pub friction_heat: f64,
     /// Heat produced by drive damping since initialization.
     pub damping_heat: f64,
+    /// Kinetic energy ½·J_m·θ̇_m² of the motor rotors.
+    pub rotor_kinetic: f64,
+    /// Heat produced by the motors' Coulomb and viscous friction since
+    /// initialization.
+    pub motor_heat: f64,
 }
 
 impl Energy {
-    /// Kinetic + gravity + spring energy.
+    /// Kinetic (links and rotors) + gravity + spring energy.
     pub fn total(&self) -> f64 {
-        self.kinetic + self.potential + self.spring
+        self.kinetic + self.potential + self.spring + self.rotor_kinetic
     }
 
-    /// E − (W_drive − Q_friction − Q_damping): constant in time when the
-    /// account closes.
+    /// E − (W_drive − Q_friction − Q_damping − Q_motor): constant in time
+    /// when the account closes.
     pub fn balance(&self) -> f64 {
-        self.total() - self.drive_work + self.friction_heat + self.damping_heat
+        self.total() - self.drive_work + self.friction_heat + self.damping_heat + self.motor_heat
     }
 }
 
@@ -120,30 +140,34 @@ impl State {
     /// A state sized for `model`, at rest at q = 0.
     pub fn new(model: &Model) -> State {
         let n = model.nq();
+        let nc = model.n_coordinates();
         let phase = model
             .joints
             .iter()
             .map(|j| if j.drive.is_flexible() { Phase::Stuck } else { Phase::Prescribed })
+            .chain(std::iter::repeat_n(Phase::Stuck, nc - n))
             .collect();
         State {
             time: 0.0,
-            q: vec![0.0; n],
-            qd: vec![0.0; n],
-            qdd: vec![0.0; n],
+            q: vec![0.0; nc],
+            qd: vec![0.0; nc],
+            qdd: vec![0.0; nc],
             phase,
             q_star: vec![0.0; n],
             qd_star: vec![0.0; n],
             drive_force: vec![0.0; n],
             damping_force: vec![0.0; n],
-            friction_force: vec![0.0; n],
+            friction_force: vec![0.0; nc],
             normal_load: vec![0.0; n],
             lever_load: vec![0.0; n],
-            margin: vec![f64::INFINITY; n],
+            margin: vec![f64::INFINITY; nc],
             clearance_margin: vec![f64::INFINITY; n],
             reaction_force: vec![Vec3::zeros(); n],
             reaction_moment: vec![Vec3::zeros(); n],
-            stick_count: vec![0; n],
-            stuck_time: vec![0.0; n],
+            stick_count: vec![0; nc],
+            stuck_time: vec![0.0; nc],
+            motor_torque: vec![0.0; nc - n],
+            gear_torque: vec![0.0; nc - n],
             energy: Energy::default(),
             end_point: Vec3::zeros(),
             end_point_rigid: Vec3::zeros(),
@@ -173,6 +197,8 @@ impl State {
             reaction_moment,
             stick_count,
             stuck_time,
+            motor_torque,
+            gear_torque,
             energy,
             end_point,
             end_point_rigid,
@@ -196,6 +222,8 @@ impl State {
         self.reaction_moment.copy_from_slice(reaction_moment);
         self.stick_count.copy_from_slice(stick_count);
         self.stuck_time.copy_from_slice(stuck_time);
+        self.motor_torque.copy_from_slice(motor_torque);
+        self.gear_torque.copy_from_slice(gear_torque);
         self.energy = *energy;
         self.end_point = *end_point;
         self.end_point_rigid = *end_point_rigid;
@@ -220,11 +248,33 @@ impl State {
         std::mem::swap(&mut self.friction_force, &mut other.friction_force);
         std::mem::swap(&mut self.margin, &mut other.margin);
         std::mem::swap(&mut self.clearance_margin, &mut other.clearance_margin);
+        std::mem::swap(&mut self.motor_torque, &mut other.motor_torque);
     }
 
-    /// Number of joints.
+    /// Number of joints n.
     pub fn nq(&self) -> usize {
+        self.q_star.len()
+    }
+
+    /// Number of coordinates: n joints and the rotors of the motor drives.
+    pub fn n_coordinates(&self) -> usize {
         self.q.len()
+    }
+
+    /// The coordinate index of rotor `r` (the r-th motor drive in chain
+    /// order, 0-based).
+    pub fn rotor_coordinate(&self, r: usize) -> usize {
+        self.nq() + r
+    }
+
+    /// Rotor angle θ_m of the r-th motor drive, rad.
+    pub fn theta_m(&self, r: usize) -> f64 {
+        self.q[self.rotor_coordinate(r)]
+    }
+
+    /// Rotor speed θ̇_m of the r-th motor drive, rad/s.
+    pub fn omega_m(&self, r: usize) -> f64 {
+        self.qd[self.rotor_coordinate(r)]
     }
 
     /// Every value a user can read is finite: coordinates, inputs, forces,
@@ -232,7 +282,7 @@ impl State {
     /// sub-step. Otherwise the first one that is not, by its field name and
     /// 1-based joint (`normal_load[1]`), and its value.
     pub fn check_finite(&self) -> Result<(), (String, f64)> {
-        let joint_fields: [(&str, &[f64]); 10] = [
+        let joint_fields: [(&str, &[f64]); 12] = [
             ("q", &self.q),
             ("qd", &self.qd),
             ("qdd", &self.qdd),
@@ -243,6 +293,8 @@ impl State {
             ("normal_load", &self.normal_load),
             ("lever_load", &self.lever_load),
             ("stuck_time", &self.stuck_time),
+            ("motor_torque", &self.motor_torque),
+            ("gear_torque", &self.gear_torque),
         ];
         for (name, values) in joint_fields {
             if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
@@ -264,6 +316,8 @@ impl State {
             ("energy.drive_work", e.drive_work),
             ("energy.friction_heat", e.friction_heat),
             ("energy.damping_heat", e.damping_heat),
+            ("energy.rotor_kinetic", e.rotor_kinetic),
+            ("energy.motor_heat", e.motor_heat),
             ("end_point_error", self.end_point_error()),
             ("steps.last_h", self.steps.last_h),
         ];
@@ -299,29 +353,36 @@ impl State {
     /// drives).
     pub fn fits(&self, model: &Model) -> bool {
         let n = model.nq();
-        let sizes = [
-            self.q.len(),
-            self.qd.len(),
-            self.qdd.len(),
-            self.phase.len(),
+        let nc = model.n_coordinates();
+        let per_joint = [
             self.q_star.len(),
             self.qd_star.len(),
             self.drive_force.len(),
             self.damping_force.len(),
-            self.friction_force.len(),
             self.normal_load.len(),
             self.lever_load.len(),
-            self.margin.len(),
             self.clearance_margin.len(),
             self.reaction_force.len(),
             self.reaction_moment.len(),
+        ];
+        let per_coordinate = [
+            self.q.len(),
+            self.qd.len(),
+            self.qdd.len(),
+            self.phase.len(),
+            self.friction_force.len(),
+            self.margin.len(),
             self.stick_count.len(),
             self.stuck_time.len(),
         ];
-        sizes.iter().all(|&s| s == n)
+        per_joint.iter().all(|&s| s == n)
+            && per_coordinate.iter().all(|&s| s == nc)
+            && self.motor_torque.len() == nc - n
+            && self.gear_torque.len() == nc - n
             && model.joints.iter().zip(&self.phase).all(|(j, p)| match j.drive {
                 Drive::Rigid => *p == Phase::Prescribed,
-                Drive::Flexible { .. } => *p != Phase::Prescribed,
+                Drive::Flexible { .. } | Drive::Motor { .. } => *p != Phase::Prescribed,
             })
+            && self.phase[n..].iter().all(|p| *p != Phase::Prescribed)
     }
 }

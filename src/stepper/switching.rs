@@ -7,7 +7,6 @@ use super::simulator::Simulator;
 use super::state::{Phase, State};
 use crate::error::StepError;
 use crate::forces::drive::drive_force;
-use crate::model::Drive;
 
 /// A transition is located to this fraction of the sub-step.
 const EVENT_RESOLUTION: f64 = 1e-7;
@@ -162,11 +161,9 @@ impl Simulator {
     /// +∞ for a joint whose drive cannot release.
     #[inline(always)]
     fn flank_force(&self, i: usize, state: &State) -> f64 {
-        match self.model.joints[i].drive {
-            Drive::Flexible { stiffness, damping, clearance } => {
-                drive_force(stiffness, damping, clearance, state.q_star[i], state.qd_star[i], state.q[i], state.qd[i]).flank
-            }
-            Drive::Rigid => f64::INFINITY,
+        match self.model.joints[i].drive.spring() {
+            Some(s) => drive_force(s.stiffness, s.damping, s.clearance, state.q_star[i], state.qd_star[i], state.q[i], state.qd[i]).flank,
+            None => f64::INFINITY,
         }
     }
 
@@ -176,12 +173,13 @@ impl Simulator {
     #[inline(always)]
     fn earliest_event(&self) -> Option<Event> {
         let n = self.model.nq();
-        let (start, end) = (&self.start.margin[..n], &self.state.margin[..n]);
+        let nc = self.state.n_coordinates();
+        let (start, end) = (&self.start.margin[..nc], &self.state.margin[..nc]);
         let (c_start, c_end) = (&self.start.clearance_margin[..n], &self.state.clearance_margin[..n]);
         let clearances = self.model.has_clearance();
         let releases = self.model.has_damped_clearance();
         let (mut best, mut best_theta) = (None, f64::INFINITY);
-        for i in 0..n {
+        for i in 0..nc {
             let (g0, g1) = (start[i], end[i]);
             if g1 < 0.0 && (0.0..f64::INFINITY).contains(&g0) {
                 let theta = g0 / (g0 - g1);
@@ -189,7 +187,7 @@ impl Simulator {
                     (best, best_theta) = (Some(Event::Phase(i)), theta);
                 }
             }
-            if !clearances {
+            if !clearances || i >= n {
                 continue;
             }
             let (c0, c1) = (c_start[i], c_end[i]);
@@ -223,28 +221,44 @@ impl Simulator {
     fn accept(&mut self) -> Result<(), StepError> {
         let (s, st) = (&self.start, &mut self.state);
         let n = self.model.nq();
-        // Slices of length n let the compiler drop the per-index bounds checks.
-        let (q, qd, qdd, q_star) = (&st.q[..n], &st.qd[..n], &st.qdd[..n], &st.q_star[..n]);
-        let (drive, friction, damping) = (&st.drive_force[..n], &st.friction_force[..n], &st.damping_force[..n]);
-        let (s_q, s_q_star) = (&s.q[..n], &s.q_star[..n]);
-        let (s_drive, s_friction, s_damping) = (&s.drive_force[..n], &s.friction_force[..n], &s.damping_force[..n]);
-        let (phase, stuck_time) = (&st.phase[..n], &mut st.stuck_time[..n]);
+        let nc = st.n_coordinates();
+        let joints = &self.model.joints[..n];
+        // Slices of known length let the compiler drop the per-index bounds checks.
+        let (q, qd, qdd, q_star) = (&st.q[..nc], &st.qd[..nc], &st.qdd[..nc], &st.q_star[..n]);
+        let (drive, friction, damping) = (&st.drive_force[..n], &st.friction_force[..nc], &st.damping_force[..n]);
+        let (s_q, s_qd, s_q_star) = (&s.q[..nc], &s.qd[..nc], &s.q_star[..n]);
+        let (s_drive, s_friction, s_damping) = (&s.drive_force[..n], &s.friction_force[..nc], &s.damping_force[..n]);
+        let (phase, stuck_time) = (&st.phase[..nc], &mut st.stuck_time[..nc]);
         let dt = st.time - s.time;
         // The drive moves its end q* (for a rigid drive q* = q): it works
         // through Δq*, its damper dissipates over Δq* − Δq (zero when rigid).
-        let (mut drive_work, mut friction_heat, mut damping_heat) = (0.0, 0.0, 0.0);
+        // A motor drive's end is moved by its rotor, and the motor works
+        // through Δθ_m instead.
+        let (mut drive_work, mut friction_heat, mut damping_heat, mut motor_heat) = (0.0, 0.0, 0.0, 0.0);
         // x − x is 0 for every finite x and NaN otherwise.
         let mut finite = 0.0;
-        for i in 0..n {
+        for i in 0..nc {
             finite += (q[i] - q[i]) + (qd[i] - qd[i]) + (qdd[i] - qdd[i]);
             if matches!(phase[i], Phase::Stuck) {
                 stuck_time[i] += dt;
             }
+            if i >= n {
+                continue;
+            }
             let dq = q[i] - s_q[i];
             let dq_star = q_star[i] - s_q_star[i];
-            drive_work += (s_drive[i] + drive[i]) * dq_star;
+            if !joints[i].drive.is_motor() {
+                drive_work += (s_drive[i] + drive[i]) * dq_star;
+            }
             friction_heat += (s_friction[i] + friction[i]) * dq;
             damping_heat += (s_damping[i] + damping[i]) * (dq_star - dq);
+        }
+        for (r, &j) in self.solver.rotors().iter().enumerate() {
+            let c = n + r;
+            let Some(rotor) = joints[j].drive.rotor() else { continue };
+            let dtheta = q[c] - s_q[c];
+            drive_work += (s.motor_torque[r] + st.motor_torque[r]) * dtheta;
+            motor_heat += (s_friction[c] + friction[c] + rotor.viscous * (s_qd[c] + qd[c])) * dtheta;
         }
         if finite != 0.0 {
             // `advance` restores the state of the interval's start.
@@ -258,6 +272,7 @@ impl Simulator {
         e.drive_work += 0.5 * drive_work;
         e.friction_heat += 0.5 * friction_heat;
         e.damping_heat += 0.5 * damping_heat;
+        e.motor_heat += 0.5 * motor_heat;
         Ok(())
     }
 
@@ -275,7 +290,9 @@ impl Simulator {
         self.state.phase[i] = Phase::Stuck;
         self.evaluate()?;
         if self.state.margin[i] < 0.0 {
-            let unbalanced = self.state.drive_force[i] - self.data.tau[i];
+            // While stuck, the friction is what holds the coordinate: the
+            // unbalanced force F^d − F* of a joint (3.18), τ_m − F/N of a rotor.
+            let unbalanced = self.state.friction_force[i];
             let d: i8 = if unbalanced > 0.0 { 1 } else { -1 };
             self.state.phase[i] = Phase::Slipping(d);
             self.evaluate()?;
@@ -313,7 +330,7 @@ impl Simulator {
     #[inline(always)]
     fn pending_phase_change(&self) -> Option<usize> {
         let st = &self.state;
-        let n = self.model.nq();
+        let n = st.n_coordinates();
         // Slices of length n let the compiler drop the per-index bounds checks.
         let (decided, phase, margin, qd, qdd) = (&self.decided[..n], &st.phase[..n], &st.margin[..n], &st.qd[..n], &st.qdd[..n]);
         for i in 0..n {

@@ -19,6 +19,11 @@ pub enum Arity {
     PerJoint,
     /// Three components per joint, `name[i,k]`.
     PerJointVector,
+    /// One per joint with a motor drive, `name[i]`; the value reads rotor r
+    /// (the component index, see [`OutputKind::value`]).
+    PerRotor,
+    /// One variable, `name`, in models with motor drives only.
+    SingleWithRotors,
 }
 
 /// The unit of an output kind.
@@ -51,7 +56,8 @@ pub struct OutputKind {
     pub boolean: bool,
     /// The description of the variable of joint `j` and component `k` (0-based).
     pub description: fn(&Model, usize, usize) -> String,
-    /// Its value in a state, for joint `j` and component `k` (0-based).
+    /// Its value in a state, for joint `j` and component `k` (0-based; for
+    /// [`Arity::PerRotor`] the rotor's index r among the motor drives).
     pub value: fn(&State, usize, usize) -> f64,
 }
 
@@ -204,7 +210,7 @@ pub const OUTPUTS: &[OutputKind] = &[
         "W_drive",
         Arity::Single,
         OutputUnit::Fixed("J"),
-        |_, _, _| "Work done by the drives since initialization".into(),
+        |_, _, _| "Work done by the drives since initialization (flexible drive ends, rigid drives, and the motors' torque tau_m over theta_m)".into(),
         |s, _, _| s.energy.drive_work,
     ),
     output(
@@ -220,6 +226,68 @@ pub const OUTPUTS: &[OutputKind] = &[
         OutputUnit::Fixed("J"),
         |_, _, _| "Heat produced by drive damping since initialization".into(),
         |s, _, _| s.energy.damping_heat,
+    ),
+    output(
+        "theta_m",
+        Arity::PerRotor,
+        OutputUnit::Fixed("rad"),
+        |m, j, _| format!("Rotor angle theta_m of the motor of {} (motor side); the motor encoder reads theta_m/N = q* in joint units", joint_label(m, j)),
+        |s, _, r| s.theta_m(r),
+    ),
+    output(
+        "omega_m",
+        Arity::PerRotor,
+        OutputUnit::Fixed("rad/s"),
+        |m, j, _| format!("Rotor speed theta_m' of the motor of {}", joint_label(m, j)),
+        |s, _, r| s.omega_m(r),
+    ),
+    OutputKind {
+        name: "stick_m",
+        arity: Arity::PerRotor,
+        unit: OutputUnit::None,
+        boolean: true,
+        description: |m, j, _| format!("True while the rotor of the motor of {} is held by its Coulomb friction tau_c", joint_label(m, j)),
+        value: |s, _, r| f64::from(u8::from(s.is_stuck(s.rotor_coordinate(r)))),
+    },
+    output(
+        "n_stick_m",
+        Arity::PerRotor,
+        OutputUnit::None,
+        |m, j, _| format!("Number of stiction phases the rotor of the motor of {} has entered since initialization", joint_label(m, j)),
+        |s, _, r| s.stick_count[s.rotor_coordinate(r)] as f64,
+    ),
+    output(
+        "tau_load",
+        Arity::PerRotor,
+        OutputUnit::Fixed("N.m"),
+        |m, j, _| {
+            format!(
+                "Gear torque F/N on the rotor of the motor of {}, motor side (F = F_drive); at rest in static equilibrium, the motor torque that holds the link",
+                joint_label(m, j)
+            )
+        },
+        |s, _, r| s.gear_torque[r],
+    ),
+    output(
+        "tau_f_m",
+        Arity::PerRotor,
+        OutputUnit::Fixed("N.m"),
+        |m, j, _| format!("Coulomb friction torque tau_f of the motor of {}; while stuck, the torque that holds the rotor", joint_label(m, j)),
+        |s, _, r| s.friction_force[s.rotor_coordinate(r)],
+    ),
+    output(
+        "E_rotor",
+        Arity::SingleWithRotors,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Kinetic energy J_m theta_m'^2/2 of the motor rotors".into(),
+        |s, _, _| s.energy.rotor_kinetic,
+    ),
+    output(
+        "Q_motor",
+        Arity::SingleWithRotors,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Heat produced by the motors' Coulomb and viscous friction since initialization".into(),
+        |s, _, _| s.energy.motor_heat,
     ),
     output(
         "n_substeps",
@@ -248,9 +316,13 @@ pub const OUTPUTS: &[OutputKind] = &[
 /// per-joint vector kind runs over the joints, then the components.
 pub(super) fn outputs(b: &mut Builder, model: &Model) {
     let n = model.nq();
+    let motors = model.motor_joints();
     for (index, kind) in OUTPUTS.iter().enumerate() {
         let members: Vec<(usize, usize, String)> = match kind.arity {
             Arity::Single => vec![(0, 0, kind.name.to_string())],
+            Arity::SingleWithRotors if motors.is_empty() => vec![],
+            Arity::SingleWithRotors => vec![(0, 0, kind.name.to_string())],
+            Arity::PerRotor => motors.iter().enumerate().map(|(r, &j)| (j, r, format!("{}[{}]", kind.name, j + 1))).collect(),
             Arity::Vector => (0..3).map(|k| (0, k, format!("{}[{}]", kind.name, k + 1))).collect(),
             Arity::PerJoint => (0..n).map(|j| (j, 0, format!("{}[{}]", kind.name, j + 1))).collect(),
             Arity::PerJointVector => (0..n)

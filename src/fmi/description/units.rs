@@ -14,7 +14,7 @@ pub struct Unit {
 const DEG: f64 = 180.0 / std::f64::consts::PI;
 
 /// Every unit a variable may carry.
-pub const UNITS: [Unit; 16] = [
+pub const UNITS: [Unit; 18] = [
     Unit { name: "m", base: [0, 1, 0, 0], display: &[("mm", 1e3)] },
     Unit { name: "rad", base: [0, 0, 0, 1], display: &[("deg", DEG)] },
     Unit { name: "s", base: [0, 0, 1, 0], display: &[] },
@@ -31,4 +31,6 @@ pub const UNITS: [Unit; 16] = [
     Unit { name: "N.m/rad", base: [1, 2, -2, -1], display: &[] },
     Unit { name: "N.s/m", base: [1, 0, -1, 0], display: &[] },
     Unit { name: "N.m.s/rad", base: [1, 2, -1, -1], display: &[] },
+    Unit { name: "kg.m2", base: [1, 2, 0, 0], display: &[] },
+    Unit { name: "rad/m", base: [0, -1, 0, 1], display: &[] },
 ];

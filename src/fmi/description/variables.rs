@@ -4,18 +4,20 @@
 //! modelDescription index of a variable is its value reference + 1. The list
 //! is, in this order (n joints, structured names with 1-based indices):
 //!
-//! 1. inputs `q_star[i]`, `qd_star[i]`, `qdd_star[i]`, i = 1…n;
+//! 1. inputs `q_star[i]`, `qd_star[i]`, `qdd_star[i]`, i = 1…n, then
+//!    `tau_m[i]` for the joints with a motor drive;
 //! 2. outputs, kind by kind in the order of the table
 //!    [`OUTPUTS`](super::OUTPUTS) (`q[i]`, …, `f[i,k]`, …, `eps`, …);
 //! 3. tunable parameters, one block per [`Parameter`] in [`Parameter::ALL`]
 //!    order, each over the joints that have it (`Model::has_parameter`);
 //! 4. start values `use_start_values`, `q_start[i]`, `qd_start[i]` (flexible
-//!    joints only);
+//!    and motor joints only), and for models with motor drives
+//!    `theta_m_start[i]`, `omega_m_start[i]` and `static_start`;
 //! 5. fixed integrator settings in [`Setting::ALL`] order.
 
 use super::hash::Fnv1a128;
 use super::outputs::{outputs, Output};
-use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, Range, INPUT_RANGES};
+use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, Range, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 
 /// Causality of a variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -198,6 +200,14 @@ pub enum Quantity {
     StartQ(usize),
     /// Start velocity of flexible joint `.0` (0-based).
     StartQd(usize),
+    /// The motor torque τ_m of motor joint `.0` (0-based).
+    MotorTorque(usize),
+    /// Start angle θ_m of the rotor of motor joint `.0` (0-based).
+    StartThetaM(usize),
+    /// Start speed θ̇_m of the rotor of motor joint `.0` (0-based).
+    StartOmegaM(usize),
+    /// Start the rotors in static equilibrium.
+    StaticStart,
 }
 
 /// One scalar variable.
@@ -334,7 +344,11 @@ pub(super) fn joint_label(model: &Model, j: usize) -> String {
         JointKind::Revolute => "revolute",
         JointKind::Prismatic => "prismatic",
     };
-    let drive = if joint.drive.is_flexible() { "flexible" } else { "rigid" };
+    let drive = match joint.drive {
+        Drive::Rigid => "rigid",
+        Drive::Flexible { .. } => "flexible",
+        Drive::Motor { .. } => "motor",
+    };
     match &model.joint_names[j] {
         Some(name) => format!("joint {} (`{name}`, {kind}, {drive} drive)", j + 1),
         None => format!("joint {} ({kind}, {drive} drive)", j + 1),
@@ -358,6 +372,11 @@ fn inputs(b: &mut Builder, model: &Model) {
             let role = match joint.drive {
                 Drive::Flexible { .. } => format!("Drive end {what} (q*, q*', q*'' of eq. 2.1)"),
                 Drive::Rigid => format!("Prescribed {what}"),
+                Drive::Motor { .. } => format!(
+                    "Ignored while stepping (the drive end of a motor drive is its rotor, q* = theta_m/N; set tau_m[{}]); \
+                     at initialization without start values, the start {what}",
+                    j + 1
+                ),
             };
             let description = format!(
                 "{role} of {}, at the start of the communication step; held as the polynomial q* + q*' t + q*'' t^2/2 across it",
@@ -367,6 +386,16 @@ fn inputs(b: &mut Builder, model: &Model) {
             let ty = Type::Real { unit: Some(unit), min: Some(range.min), max: Some(range.max), start: Some(0.0) };
             b.push(format!("{name}[{}]", j + 1), description, INPUT, ty, Quantity::Input(field, j));
         }
+    }
+    for j in model.motor_joints() {
+        let range = MOTOR_TORQUE_RANGES[0].1;
+        let description = format!(
+            "Motor torque tau_m of {}, on the rotor (motor side; J_m theta_m'' = tau_m - F/N - b_m theta_m' - tau_f), at the start of the \
+             communication step; held as tau_m + tau_m' t + tau_m'' t^2/2 across it with the derivatives of fmi2SetRealInputDerivatives",
+            joint_label(model, j)
+        );
+        let ty = Type::Real { unit: Some("N.m"), min: Some(range.min), max: Some(range.max), start: Some(0.0) };
+        b.push(format!("tau_m[{}]", j + 1), description, INPUT, ty, Quantity::MotorTorque(j));
     }
 }
 
@@ -391,15 +420,26 @@ fn parameter_meaning(model: &Model, p: Parameter, j: usize) -> (Option<&'static 
         Parameter::LengthA => (Some("m"), "Distance l_A of bearing A below the reaction reference point (3.13)"),
         Parameter::LengthB => (Some("m"), "Distance l_B of bearing B above the reaction reference point (3.13)"),
         Parameter::Mass => (Some("kg"), "Mass of the link moved by"),
+        Parameter::GearRatio => (
+            match model.joints[j].kind {
+                JointKind::Revolute => None,
+                JointKind::Prismatic => Some("rad/m"),
+            },
+            "Gear ratio N (motor rad per joint rad, or per m of a prismatic joint): q* = theta_m/N",
+        ),
+        Parameter::RotorInertia => (Some("kg.m2"), "Rotor inertia J_m on the motor side"),
+        Parameter::MotorViscous => (Some("N.m.s/rad"), "Viscous friction b_m of motor and gear, motor side"),
+        Parameter::MotorCoulomb => {
+            (Some("N.m"), "Coulomb friction level tau_c of motor and gear, motor side, with stiction (stuck while |tau_m - F/N| <= tau_c)")
+        }
     };
     let of = if p == Parameter::Mass { "" } else { " of" };
-    (
-        unit,
-        format!(
-            "{what}{of} {}; tunable between steps, relations (mu_s >= mu_k, ...) checked at the next step",
-            joint_label(model, j)
-        ),
-    )
+    let when = if p.is_tunable() {
+        "tunable between steps, relations (mu_s >= mu_k, ...) checked at the next step"
+    } else {
+        "fixed after initialization"
+    };
+    (unit, format!("{what}{of} {}; {when}", joint_label(model, j)))
 }
 
 fn parameters(b: &mut Builder, model: &Model) {
@@ -413,7 +453,8 @@ fn parameters(b: &mut Builder, model: &Model) {
             let range = p.range();
             description.push_str(&excluded_min(range));
             let ty = Type::Real { unit, min: Some(range.min), max: Some(range.max), start: Some(value) };
-            b.push(format!("{}[{}]", p.name(), j + 1), description, TUNABLE, ty, Quantity::Parameter(p, j));
+            let kind = if p.is_tunable() { TUNABLE } else { FIXED };
+            b.push(format!("{}[{}]", p.name(), j + 1), description, kind, ty, Quantity::Parameter(p, j));
         }
     }
 }
@@ -436,6 +477,31 @@ fn start_values(b: &mut Builder, model: &Model) {
         let unit = joint_units(model.joints[j].kind).rate;
         let description = format!("Start velocity q' of {}, used when use_start_values = true", joint_label(model, j));
         b.push(format!("qd_start[{}]", j + 1), description, FIXED, real_start(Some(unit), 0.0), Quantity::StartQd(j));
+    }
+    let motors = model.motor_joints();
+    for &j in &motors {
+        let description = format!(
+            "Start angle theta_m of the rotor of {}, used when use_start_values = true and static_start = false",
+            joint_label(model, j)
+        );
+        b.push(format!("theta_m_start[{}]", j + 1), description, FIXED, real_start(Some("rad"), 0.0), Quantity::StartThetaM(j));
+    }
+    for &j in &motors {
+        let description =
+            format!("Start speed theta_m' of the rotor of {}, used when use_start_values = true", joint_label(model, j));
+        b.push(format!("omega_m_start[{}]", j + 1), description, FIXED, real_start(Some("rad/s"), 0.0), Quantity::StartOmegaM(j));
+    }
+    if !motors.is_empty() {
+        b.push(
+            "static_start".into(),
+            "false: each rotor starts at rest with its gear spring unloaded, theta_m = N q (or at theta_m_start[i] with use_start_values); \
+             true: at rest, turned so that the gear spring holds its link at rest against gravity and the other loads at the start \
+             (theta_m = N (q + F/k + sgn(F) Delta)); tau_load[i] then reads the motor torque that holds it"
+                .into(),
+            FIXED,
+            Type::Boolean { start: Some(false) },
+            Quantity::StaticStart,
+        );
     }
 }
 
