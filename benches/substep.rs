@@ -5,8 +5,8 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
-use stick_slip_manipulator::motion::reference_inputs;
-use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
+use stick_slip_manipulator::motion::{reference_inputs, RotorServo};
+use stick_slip_manipulator::{DriveInputs, Model, MotorTorques, Simulator, State};
 
 const INTERVAL: f64 = 1e-3;
 
@@ -39,7 +39,8 @@ struct Bench {
     inputs: [Vec<f64>; 3],
 }
 
-/// Runs `model` under `drive` until `t`, then keeps that state.
+/// Runs `model` under `drive` until `t`, then keeps that state. The rotors
+/// of motor drives follow the drive's motion under [`RotorServo`].
 fn prepare(model: Model, drive: &Drive, t: f64) -> Bench {
     let n = model.nq();
     let mut sim = Simulator::new(model).unwrap();
@@ -49,12 +50,20 @@ fn prepare(model: Model, drive: &Drive, t: f64) -> Bench {
     let steps = (t / INTERVAL).round() as usize;
     for k in 0..=steps {
         drive(k as f64 * INTERVAL, &mut q, &mut qd, &mut qdd);
+        servo(&mut sim, &q, &qd, &qdd);
         if k < steps {
             sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, INTERVAL).unwrap();
         }
     }
     let saved = sim.state().clone();
     Bench { sim, saved, inputs: [q, qd, qdd] }
+}
+
+/// Sets the motor torques of [`RotorServo`] for the motion (q, q̇, q̈) now.
+fn servo(sim: &mut Simulator, q: &[f64], qd: &[f64], qdd: &[f64]) {
+    let (tau, rate) = RotorServo::default().torques(sim.model(), sim.state(), q, qd, qdd);
+    let zero = vec![0.0; tau.len()];
+    sim.set_motor_torques(&MotorTorques { tau_m: &tau, tau_m_rate: &rate, tau_m_accel: &zero }).unwrap();
 }
 
 impl Bench {
@@ -118,5 +127,30 @@ fn placements(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, reference_manipulator, chain_growth, placements);
+/// The reference arm with motor drives on joints 1 and 3 (a rotor each, six
+/// coordinates) against flexible drives, in one run: one interval of 500
+/// fixed sub-steps at t = 0.02 and 0.5 s of the reference motion (the motor arm's
+/// rotors under [`RotorServo`]), and the whole 2 s motion at the default
+/// error control.
+fn motor_drives(c: &mut Criterion) {
+    let drive = reference_drive();
+    let mut group = c.benchmark_group("drive_kind_interval_1ms");
+    group.throughput(Throughput::Elements(500));
+    // t = 0.02: the links stuck; 0.5: links and rotors slipping.
+    for t in [0.02, 0.5] {
+        for (name, model) in [("flexible", Model::reference_rrpr()), ("motor", Model::reference_rrpr_motor())] {
+            let mut bench = prepare(fixed_substeps(model), &drive, t);
+            group.bench_function(BenchmarkId::from_parameter(format!("{name}/t={t}")), |b| b.iter(|| bench.interval()));
+        }
+    }
+    group.finish();
+    let mut group = c.benchmark_group("drive_kind_reference_motion_2s");
+    group.sample_size(10);
+    for (name, model) in [("flexible", Model::reference_rrpr()), ("motor", Model::reference_rrpr_motor())] {
+        group.bench_function(BenchmarkId::from_parameter(name), |b| b.iter(|| prepare(model.clone(), &drive, 2.0)));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, reference_manipulator, chain_growth, placements, motor_drives);
 criterion_main!(benches);

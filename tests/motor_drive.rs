@@ -346,3 +346,42 @@ fn static_start_holds_the_arm_with_the_reported_torque() {
     eprintln!("static start: holding torques {hold:?} N.m; links moved by at most {moved:.2e} in 0.2 s");
     assert!(moved < 1e-9, "the arm moved by {moved:e}");
 }
+
+/// The reference motion on the arm with motor drives under the motor-side
+/// servo of `motion::RotorServo` at the default error control: the motor
+/// encoders θ_m/N follow q* to within 1e-4 of the motion, the links lag
+/// behind by the gear's wind-up as with flexible drives (ε of the same
+/// order), and the sub-steps stay within 2× of the flexible drives'.
+#[test]
+fn rotor_servo_runs_the_reference_motion_on_motor_drives() {
+    use stick_slip_manipulator::motion::{reference_inputs, RotorServo};
+    let run = |model: Model| {
+        let mut sim = Simulator::new(model).unwrap();
+        let (q, qd, qdd) = reference_inputs(0.0);
+        sim.initialize(0.0, &DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, None).unwrap();
+        let (mut encoder, mut eps_max) = (0.0f64, 0.0f64);
+        for k in 0..2000 {
+            let (q, qd, qdd) = reference_inputs(k as f64 * 1e-3);
+            let (tau, rate) = RotorServo::default().torques(sim.model(), sim.state(), &q, &qd, &qdd);
+            sim.set_motor_torques(&MotorTorques { tau_m: &tau, tau_m_rate: &rate, tau_m_accel: &[0.0; 4] }).unwrap();
+            sim.advance(&DriveInputs { q_star: &q, qd_star: &qd, qdd_star: &qdd }, 1e-3).unwrap();
+            let (q, _, _) = reference_inputs((k + 1) as f64 * 1e-3);
+            let s = sim.state();
+            for j in [0, 2] {
+                encoder = encoder.max((s.q_star[j] - q[j]).abs());
+            }
+            eps_max = eps_max.max(s.end_point_error());
+        }
+        (encoder, eps_max, sim.state().steps.accepted, sim.state().stick_count.clone())
+    };
+    let (_, eps_flexible, steps_flexible, _) = run(Model::reference_rrpr());
+    let (encoder, eps_motor, steps_motor, sticks) = run(Model::reference_rrpr_motor());
+    eprintln!(
+        "reference motion: flexible eps_max {eps_flexible:.3e} m in {steps_flexible} sub-steps; motor eps_max {eps_motor:.3e} m, \
+         encoder error {encoder:.2e}, {steps_motor} sub-steps ({:.2}x), stick counts {sticks:?}",
+        steps_motor as f64 / steps_flexible as f64
+    );
+    assert!(encoder < 1e-4 * std::f64::consts::PI / 3.0, "motor encoder off the motion by {encoder:e}");
+    assert!(eps_motor > 0.3 * eps_flexible && eps_motor < 3.0 * eps_flexible);
+    assert!((steps_motor as f64) < 2.0 * steps_flexible as f64, "{steps_motor} vs {steps_flexible} sub-steps");
+}

@@ -79,13 +79,23 @@ pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64, p
         let change = state.qdd[c] - start.qdd[c];
         let mut error = coefficient * change.abs();
         if let Some(PreviousSubStep { qdd: qdd_before, h: h_before, mass_diagonal }) = previous {
-            let mass = mass_diagonal[c];
             // q⁗ from the second difference of q̈ over this and the last sub-step.
             let fourth = 2.0 * (change / h - (start.qdd[c] - qdd_before[c]) / h_before) / (h + h_before);
             let velocity_error = (s.gamma - 0.5) * h * change + (0.5 * s.gamma - 1.0 / 6.0) * h * h * h * fourth;
             // In the energy norm of the drive's vibration, a velocity error
-            // counts as a position error times 1/ω, ω² = k/M_ii.
-            error = error.max(velocity_error.abs() * (mass / stiffness).sqrt());
+            // counts as a position error times 1/ω, ω² = k/M_ii. A motor
+            // drive's link and rotor vibrate against each other on the gear
+            // (the wind-up θ_m/N − q), at ω² = k·(1/M_jj + 1/(N²·J_m)): both
+            // coordinates' velocity errors count at that frequency.
+            let period = match model.joints[i].drive.rotor() {
+                None => (mass_diagonal[c] / stiffness).sqrt(),
+                Some(rotor) => {
+                    let link = mass_diagonal[i];
+                    let reflected = rotor.gear_ratio * rotor.gear_ratio * mass_diagonal[rotor_coordinate_of(model, i)];
+                    (1.0 / (spring.stiffness / link + spring.stiffness / reflected)).sqrt()
+                }
+            };
+            error = error.max(velocity_error.abs() * period);
         }
         let stretch = clearance_margin(spring.clearance, q_star[i] - q[i]).max(0.0);
         // A rotor's friction causes a stretch of N·τ_f/k.
@@ -93,6 +103,12 @@ pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64, p
         worst = worst.max(error / ratio / (s.error_tolerance * weight * h));
     }
     worst
+}
+
+/// The coordinate of the rotor of motor joint `i`: n + the motor joints before it.
+#[inline(always)]
+fn rotor_coordinate_of(model: &Model, i: usize) -> usize {
+    model.nq() + model.joints[..i].iter().filter(|j| j.drive.is_motor()).count()
 }
 
 /// The joint of the next rotor coordinate: the `*rotor`-th motor drive,

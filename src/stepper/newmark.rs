@@ -634,7 +634,14 @@ impl NewmarkSolver {
             st.margin[c] = torques.margin;
             st.gear_torque[r] = st.drive_force[j] / rotor.gear_ratio;
             if slip.is_some() {
-                let relative = torques.residual / torques.scale.max(f64::MIN_POSITIVE);
+                // The residual counts on the link side (×N), against its
+                // joint's force scale, as the rotor's error does: a rotor is
+                // solved as precisely as the link it drives.
+                let joint = &model.joints[j];
+                let link_scale =
+                    st.drive_force[j].abs() + st.friction_force[j].abs() + data.tau[j].abs() + joint_load_scale(data, joint, j);
+                let scale = torques.scale + link_scale / rotor.gear_ratio;
+                let relative = torques.residual / scale.max(f64::MIN_POSITIVE);
                 if relative.abs() > worst {
                     (worst, worst_joint) = (relative.abs(), c);
                 }
