@@ -14,7 +14,7 @@ use crate::error::{ModelError, StepError};
 use crate::forces::drive::spring_energy;
 use crate::forces::friction::holds_statically;
 use crate::forces::rotor::rotor_holds_statically;
-use crate::model::{Drive, Model};
+use crate::model::{Drive, Model, Range};
 
 /// A phase change of one coordinate, for event logs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -217,19 +217,8 @@ impl Simulator {
     /// drive inputs: a wrong length, a value that is not finite or outside
     /// [`MOTOR_TORQUE_RANGES`] is refused and nothing changes.
     pub fn set_motor_torques(&mut self, torques: &MotorTorques) -> Result<(), StepError> {
-        let n = self.model.nq();
         let values = [torques.tau_m, torques.tau_m_rate, torques.tau_m_accel];
-        for ((field, range), values) in MOTOR_TORQUE_RANGES.into_iter().zip(values) {
-            if values.len() != n {
-                return Err(StepError::InputLength { field, expected: n, got: values.len() });
-            }
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-                return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
-            }
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
-                return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
-            }
-        }
+        check_input_values(self.model.nq(), MOTOR_TORQUE_RANGES, values)?;
         self.torques.set_values(self.state.time, values);
         Ok(())
     }
@@ -265,19 +254,7 @@ impl Simulator {
     }
 
     fn check_inputs(&self, inputs: &DriveInputs) -> Result<(), StepError> {
-        let n = self.model.nq();
-        for ((field, range), values) in INPUT_RANGES.into_iter().zip([inputs.q_star, inputs.qd_star, inputs.qdd_star]) {
-            if values.len() != n {
-                return Err(StepError::InputLength { field, expected: n, got: values.len() });
-            }
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-                return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
-            }
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
-                return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
-            }
-        }
-        Ok(())
+        check_input_values(self.model.nq(), INPUT_RANGES, [inputs.q_star, inputs.qd_star, inputs.qdd_star])
     }
 
     /// Starts a simulation at time `t0` with the drive inputs at t0. Flexible
@@ -645,4 +622,21 @@ fn phase_at_start(qd: f64, holds: bool) -> Phase {
     } else {
         Phase::Slipping(1)
     }
+}
+
+/// Checks three input vectors (a value and its two derivatives) against
+/// their names and ranges: n values each, finite, inside the range.
+fn check_input_values(n: usize, ranges: [(&'static str, Range); 3], values: [&[f64]; 3]) -> Result<(), StepError> {
+    for ((field, range), values) in ranges.into_iter().zip(values) {
+        if values.len() != n {
+            return Err(StepError::InputLength { field, expected: n, got: values.len() });
+        }
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
+        }
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
+            return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
+        }
+    }
+    Ok(())
 }
