@@ -19,7 +19,7 @@ pub enum ModelError {
         reason: String,
     },
     /// A numeric parameter is out of its range.
-    #[error("`{field}` = {}: {reason}", crate::model::number(*.value))]
+    #[error("`{field}` = {}: {reason}", number(*.value))]
     InvalidParameter {
         /// The field, e.g. `joint[3].drive.k`.
         field: String,
@@ -201,5 +201,15 @@ fn shortest_note(substep: f64, halvings: usize) -> String {
         format!(", sub-step {substep:e} s")
     } else {
         format!(", even at the shortest sub-step tried, {substep:e} s after {halvings} halvings")
+    }
+}
+
+/// A bound or value as people write it: 2, 0.5, 1e-3, 1e12, 1e300 (not the
+/// 301 digits of `{}`).
+pub(crate) fn number(x: f64) -> String {
+    if x == 0.0 || (1e-2..1e4).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }

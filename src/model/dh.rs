@@ -18,7 +18,8 @@
 //! are carried through T_i, and a bearing reference point given on z_{i−1}
 //! in frame i−1 lands on the joint axis at height z − d_i.
 
-use super::manipulator::{check_value, check_vec, validate_link, Range};
+use super::manipulator::validate_link;
+use super::range::{check_value, check_vec, Range};
 use super::{
     ContactGeometry, DhJoint, DhRow, IntegratorSettings, Joint, JointFriction, JointKind, Link,
     Model, Placement,

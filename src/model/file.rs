@@ -434,7 +434,7 @@ fn joint_from_file(number: usize, j: &JointFile) -> Result<DhJoint, ModelError> 
     }
     let geometry = geometry_from_file(j.bearings.as_ref(), j.slider.as_ref());
     if j.friction.is_some() && geometry.is_none() {
-        let (field, what) = friction_geometry_needed(kind);
+        let (field, what) = kind.friction_geometry();
         return Err(ModelError::Invalid { field: format!("joint[{number}].{field}"), reason: format!("friction on this joint needs {what}") });
     }
     Ok(DhJoint {
@@ -445,13 +445,6 @@ fn joint_from_file(number: usize, j: &JointFile) -> Result<DhJoint, ModelError> 
     })
 }
 
-/// The key and the description of the contact geometry friction needs.
-pub(super) fn friction_geometry_needed(kind: JointKind) -> (&'static str, &'static str) {
-    match kind {
-        JointKind::Revolute => ("bearings", "its bearing geometry (reaction_point, l_a, l_b, d_a, d_b, d_c)"),
-        JointKind::Prismatic => ("slider", "its slider geometry (centre, a, b, c)"),
-    }
-}
 
 fn link_from_file(l: &LinkFile) -> Link {
     let i = &l.inertia;

@@ -12,6 +12,17 @@ pub enum JointKind {
     Prismatic,
 }
 
+impl JointKind {
+    /// The model-file key and the description of the contact geometry
+    /// friction on a joint of this kind needs.
+    pub(crate) fn friction_geometry(self) -> (&'static str, &'static str) {
+        match self {
+            JointKind::Revolute => ("bearings", "its bearing geometry (reaction_point, l_a, l_b, d_a, d_b, d_c)"),
+            JointKind::Prismatic => ("slider", "its slider geometry (centre, a, b, c)"),
+        }
+    }
+}
+
 /// A constant rigid placement of a frame in its parent frame:
 /// x_parent = rotation · x_child + translation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,7 +1,8 @@
 //! The immutable description of a manipulator: the chain, its drives, its
 //! friction and the integrator settings.
 
-use super::{ContactGeometry, Joint, JointKind, Link, Parameter, Placement};
+use super::range::{check_value, check_vec, invalid, Range};
+use super::{ContactGeometry, Joint, JointKind, Link, Placement};
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
 
@@ -111,140 +112,6 @@ pub struct Model {
     pub warnings: Vec<String>,
 }
 
-fn invalid(field: impl Into<String>, value: f64, reason: impl Into<String>) -> ModelError {
-    ModelError::InvalidParameter { field: field.into(), value, reason: reason.into() }
-}
-
-/// Checks that `value` is finite and lies in `range`.
-pub(crate) fn check_value(field: &str, value: f64, range: Range) -> Result<(), ModelError> {
-    if !value.is_finite() {
-        return Err(invalid(field, value, "must be a finite number"));
-    }
-    if range.contains(value) {
-        Ok(())
-    } else {
-        Err(invalid(field, value, range.requirement()))
-    }
-}
-
-/// The admissible range of a scalar: finite, between `min` and `max`. The
-/// ceilings are physical, far beyond any machine, and keep every quantity the
-/// engine derives from the values far from overflow.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Range {
-    /// Lower bound.
-    pub min: f64,
-    /// Upper bound (included).
-    pub max: f64,
-    /// True if `min` itself is excluded (a positive quantity).
-    pub min_excluded: bool,
-}
-
-impl Range {
-    /// [min, max].
-    pub const fn closed(min: f64, max: f64) -> Range {
-        Range { min, max, min_excluded: false }
-    }
-
-    /// (0, max]: positive.
-    pub const fn positive(max: f64) -> Range {
-        Range { min: 0.0, max, min_excluded: true }
-    }
-
-    /// [−bound, bound].
-    pub const fn symmetric(bound: f64) -> Range {
-        Range::closed(-bound, bound)
-    }
-
-    /// What a value must be, in words and as an interval: "must be
-    /// positive and at most 1e12: (0, 1e12]".
-    pub fn requirement(&self) -> String {
-        let words = if self.min == 0.0 && self.min_excluded {
-            format!("must be positive and at most {}", number(self.max))
-        } else if self.min == 0.0 {
-            format!("must not be negative and at most {}", number(self.max))
-        } else if self.min == -self.max {
-            format!("must be finite and at most {} in magnitude", number(self.max))
-        } else {
-            format!("must be at least {} and at most {}", number(self.min), number(self.max))
-        };
-        format!("{words}: {self}")
-    }
-
-    /// True if `x` lies in the range (NaN never does).
-    pub fn contains(&self, x: f64) -> bool {
-        let above = if self.min_excluded { x > self.min } else { x >= self.min };
-        above && x <= self.max
-    }
-
-    /// Length of the model's chain: DH lengths, centres, points, m; angles, rad.
-    pub const GEOMETRY: Range = Range::symmetric(1e3);
-    /// Gravity, m/s².
-    pub const GRAVITY: Range = Range::symmetric(1e3);
-    /// Link mass, kg.
-    pub const MASS: Range = Range::positive(1e6);
-    /// Entries of an inertia tensor, kg·m².
-    pub const INERTIA: Range = Range::symmetric(1e9);
-    /// Drive stiffness k, N/m or N·m/rad.
-    pub const STIFFNESS: Range = Range::positive(1e12);
-    /// Drive damping h, N·s/m or N·m·s/rad.
-    pub const DAMPING: Range = Range::closed(0.0, 1e9);
-    /// Drive clearance Δ, m or rad.
-    pub const CLEARANCE: Range = Range::closed(0.0, 1.0);
-    /// Friction coefficients μ_k, μ_s.
-    pub const FRICTION_COEFFICIENT: Range = Range::closed(0.0, 2.0);
-    /// Stribeck velocity v_s, m/s or rad/s (0: constant μ_k).
-    pub const STRIBECK_VELOCITY: Range = Range::closed(0.0, 1e3);
-    /// Slider length a, m.
-    pub const SLIDER_LENGTH: Range = Range::positive(100.0);
-    /// Slider cross-section b, c; bearing diameters and distances, m.
-    pub const CONTACT_SIZE: Range = Range::closed(0.0, 100.0);
-    /// Gear ratio N of a motor drive, rad/rad or rad/m.
-    pub const GEAR_RATIO: Range = Range::positive(1e6);
-    /// Rotor inertia J_m, kg·m².
-    pub const ROTOR_INERTIA: Range = Range::positive(1e3);
-    /// Viscous friction b_m of a motor, N·m·s/rad.
-    pub const MOTOR_VISCOUS: Range = Range::closed(0.0, 1e6);
-    /// Coulomb friction level τ_c of a motor, N·m.
-    pub const MOTOR_COULOMB: Range = Range::closed(0.0, 1e6);
-}
-
-/// Admissible ranges of the drive inputs q*, q̇*, q̈* (m or rad, per s, per
-/// s²), by input name: no machine comes near them, and they keep every
-/// quantity the engine derives from the inputs far from overflow.
-pub const INPUT_RANGES: [(&str, Range); 3] =
-    [("q_star", Range::symmetric(1e3)), ("qd_star", Range::symmetric(1e3)), ("qdd_star", Range::symmetric(1e6))];
-
-/// Admissible ranges of the motor torque input τ_m of a motor drive and of
-/// its first and second time derivatives (N·m, per s, per s²), by name.
-pub const MOTOR_TORQUE_RANGES: [(&str, Range); 3] =
-    [("tau_m", Range::symmetric(1e6)), ("tau_m'", Range::symmetric(1e9)), ("tau_m''", Range::symmetric(1e12))];
-
-impl std::fmt::Display for Range {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let open = if self.min_excluded { '(' } else { '[' };
-        let close = if self.max.is_infinite() { ')' } else { ']' };
-        write!(f, "{open}{}, {}{close}", number(self.min), number(self.max))
-    }
-}
-
-/// A bound or value as people write it: 2, 0.5, 1e-3, 1e12, 1e300 (not the
-/// 301 digits of `{}`).
-pub(crate) fn number(x: f64) -> String {
-    if x == 0.0 || (1e-2..1e4).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
-}
-
-pub(super) fn check_vec(field: &str, v: &Vec3, range: Range) -> Result<(), ModelError> {
-    for (k, x) in v.iter().enumerate() {
-        check_value(&format!("{field}[{}]", k + 1), *x, range)?;
-    }
-    Ok(())
-}
-
 impl Model {
     /// Number of joints n.
     pub fn nq(&self) -> usize {
@@ -319,21 +186,21 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     check_value(&f("offset"), joint.offset, Range::GEOMETRY)?;
     validate_placement(&f("reported_axes"), &Placement { rotation: joint.reported_axes, translation: Vec3::zeros() })?;
     if let Some(spring) = joint.drive.spring() {
-        check_value(&f("drive.k"), spring.stiffness, Parameter::Stiffness.range())?;
-        check_value(&f("drive.h"), spring.damping, Parameter::Damping.range())?;
-        check_value(&f("drive.clearance"), spring.clearance, Parameter::Clearance.range())?;
+        check_value(&f("drive.k"), spring.stiffness, Range::STIFFNESS)?;
+        check_value(&f("drive.h"), spring.damping, Range::DAMPING)?;
+        check_value(&f("drive.clearance"), spring.clearance, Range::CLEARANCE)?;
     }
     if let Some(rotor) = joint.drive.rotor() {
-        check_value(&f("drive.gear_ratio"), rotor.gear_ratio, Parameter::GearRatio.range())?;
-        check_value(&f("drive.rotor_inertia"), rotor.inertia, Parameter::RotorInertia.range())?;
-        check_value(&f("drive.motor_viscous"), rotor.viscous, Parameter::MotorViscous.range())?;
-        check_value(&f("drive.motor_coulomb"), rotor.coulomb, Parameter::MotorCoulomb.range())?;
+        check_value(&f("drive.gear_ratio"), rotor.gear_ratio, Range::GEAR_RATIO)?;
+        check_value(&f("drive.rotor_inertia"), rotor.inertia, Range::ROTOR_INERTIA)?;
+        check_value(&f("drive.motor_viscous"), rotor.viscous, Range::MOTOR_VISCOUS)?;
+        check_value(&f("drive.motor_coulomb"), rotor.coulomb, Range::MOTOR_COULOMB)?;
     }
     let Some(friction) = joint.friction else { return Ok(()) };
     let c = friction.coefficients;
-    check_value(&f("friction.mu_k"), c.mu_kinetic, Parameter::MuKinetic.range())?;
-    check_value(&f("friction.mu_s"), c.mu_static, Parameter::MuStatic.range())?;
-    check_value(&f("friction.v_s"), c.stribeck_velocity, Parameter::StribeckVelocity.range())?;
+    check_value(&f("friction.mu_k"), c.mu_kinetic, Range::FRICTION_COEFFICIENT)?;
+    check_value(&f("friction.mu_s"), c.mu_static, Range::FRICTION_COEFFICIENT)?;
+    check_value(&f("friction.v_s"), c.stribeck_velocity, Range::STRIBECK_VELOCITY)?;
     if c.mu_static < c.mu_kinetic {
         return Err(invalid(
             f("friction.mu_s"),
@@ -350,18 +217,18 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
                     reason: "must lie on the joint axis (x = y = 0 in the joint frame)".into(),
                 });
             }
-            check_value(&f("bearings.l_a"), l_a, Parameter::LengthA.range())?;
-            check_value(&f("bearings.l_b"), l_b, Parameter::LengthB.range())?;
+            check_value(&f("bearings.l_a"), l_a, Range::CONTACT_SIZE)?;
+            check_value(&f("bearings.l_b"), l_b, Range::CONTACT_SIZE)?;
             check_value(&f("bearings.l_a + bearings.l_b"), l_a + l_b, BEARING_SPAN)?;
-            check_value(&f("bearings.d_a"), d_a, Parameter::DiameterA.range())?;
-            check_value(&f("bearings.d_b"), d_b, Parameter::DiameterB.range())?;
-            check_value(&f("bearings.d_c"), d_c, Parameter::DiameterC.range())?;
+            check_value(&f("bearings.d_a"), d_a, Range::CONTACT_SIZE)?;
+            check_value(&f("bearings.d_b"), d_b, Range::CONTACT_SIZE)?;
+            check_value(&f("bearings.d_c"), d_c, Range::CONTACT_SIZE)?;
         }
         (JointKind::Prismatic, ContactGeometry::Slider { centre, a, b, c }) => {
             check_vec(&f("slider.centre"), &centre, Range::GEOMETRY)?;
-            check_value(&f("slider.a"), a, Parameter::SliderA.range())?;
-            check_value(&f("slider.b"), b, Parameter::SliderB.range())?;
-            check_value(&f("slider.c"), c, Parameter::SliderC.range())?;
+            check_value(&f("slider.a"), a, Range::SLIDER_LENGTH)?;
+            check_value(&f("slider.b"), b, Range::CONTACT_SIZE)?;
+            check_value(&f("slider.c"), c, Range::CONTACT_SIZE)?;
             check_value(&f("slider.b + slider.c"), b + c, SLIDER_SECTION)?;
         }
         (JointKind::Revolute, _) => {
@@ -392,7 +259,7 @@ pub(super) fn validate_link(number: usize, link: &Link, strict: bool) -> Result<
     // Mass 0: a massless link, or (URDF) one with rotational inertia only;
     // a Denavit–Hartenberg file (`strict`) gives every link a mass.
     if link.mass != 0.0 || strict {
-        check_value(&f("mass"), link.mass, Parameter::Mass.range())?;
+        check_value(&f("mass"), link.mass, Range::MASS)?;
     }
     check_vec(&f("com"), &link.com, Range::GEOMETRY)?;
     const ENTRIES: [&str; 9] = ["xx", "xy", "xz", "xy", "yy", "yz", "xz", "yz", "zz"];

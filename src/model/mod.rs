@@ -7,6 +7,7 @@ mod link;
 mod manipulator;
 mod parameter;
 mod presets;
+mod range;
 pub mod urdf;
 mod urdf_model;
 
@@ -15,6 +16,6 @@ pub use dh::trailing_placement;
 pub use urdf_model::{axis_alignment, JointExtras, UrdfModelSpec};
 pub use joint::{ContactGeometry, DhJoint, DhRow, Drive, DriveSpring, FrictionCoefficients, Rotor, Joint, JointFriction, JointKind, Placement};
 pub use link::Link;
-pub use manipulator::{IntegratorSettings, Model, Range, INPUT_RANGES, MAX_JOINTS, MOTOR_TORQUE_RANGES};
-pub(crate) use manipulator::number;
+pub use manipulator::{IntegratorSettings, Model, MAX_JOINTS};
+pub use range::{Range, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 pub use parameter::Parameter;

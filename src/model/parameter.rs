@@ -1,6 +1,6 @@
 //! Checked access to the tunable parameters of a model.
 
-use super::manipulator::{check_value, Range};
+use super::range::{check_value, Range};
 use super::{ContactGeometry, Drive, Joint, Link, Model};
 use crate::error::ModelError;
 

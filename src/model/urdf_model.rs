@@ -14,7 +14,6 @@
 
 use std::collections::BTreeMap;
 
-use super::file::friction_geometry_needed;
 use super::urdf::UrdfChain;
 use super::{ContactGeometry, Drive, IntegratorSettings, Joint, JointFriction, JointKind, Link, Model, Placement};
 use crate::error::ModelError;
@@ -95,7 +94,7 @@ impl Model {
             let extra = extras.get(&uj.name).copied().unwrap_or(JointExtras { drive: Drive::Rigid, friction: None, friction_without_geometry: false });
             let field = format!("joints.{}", uj.name);
             if extra.friction_without_geometry {
-                let (key, what) = friction_geometry_needed(uj.kind);
+                let (key, what) = uj.kind.friction_geometry();
                 return Err(ModelError::Invalid { field: format!("{field}.{key}"), reason: format!("friction on this joint needs {what}") });
             }
             let friction = match extra.friction {

@@ -10,6 +10,7 @@
 //! `super::…` and the `quick_xml` crate.
 
 mod hash;
+mod joints;
 mod outputs;
 mod units;
 mod variables;

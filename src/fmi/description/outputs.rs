@@ -1,10 +1,10 @@
-//! The outputs of the FMU: one table that the modelDescription writer,
-//! fmi2GetReal/fmi2GetBoolean and the CSV writer of `simulate_reference`
-//! iterate. A new output is one row of [`OUTPUTS`]: its name, how many
+//! The outputs of the FMU: one table that the variables
+//! ([`super::variables`]), fmi2GetReal/fmi2GetBoolean and the CSV writer of
+//! `simulate_reference` iterate. A new output is one row of [`OUTPUTS`]: its name, how many
 //! variables it has, its unit, its description and how it is read from the
 //! engine's [`State`].
 
-use super::variables::{joint_label, joint_units, Builder, Causality, Quantity, Type, Variability};
+use super::joints::joint_label;
 use crate::model::{JointKind, Model};
 use crate::stepper::State;
 
@@ -311,41 +311,3 @@ pub const OUTPUTS: &[OutputKind] = &[
         |s, _, _| s.steps.last_h,
     ),
 ];
-
-/// The output variables of `model`, kind by kind in [`OUTPUTS`] order; a
-/// per-joint vector kind runs over the joints, then the components.
-pub(super) fn outputs(b: &mut Builder, model: &Model) {
-    let n = model.nq();
-    let motors = model.motor_joints();
-    for (index, kind) in OUTPUTS.iter().enumerate() {
-        let members: Vec<(usize, usize, String)> = match kind.arity {
-            Arity::Single => vec![(0, 0, kind.name.to_string())],
-            Arity::SingleWithRotors if motors.is_empty() => vec![],
-            Arity::SingleWithRotors => vec![(0, 0, kind.name.to_string())],
-            Arity::PerRotor => motors.iter().enumerate().map(|(r, &j)| (j, r, format!("{}[{}]", kind.name, j + 1))).collect(),
-            Arity::Vector => (0..3).map(|k| (0, k, format!("{}[{}]", kind.name, k + 1))).collect(),
-            Arity::PerJoint => (0..n).map(|j| (j, 0, format!("{}[{}]", kind.name, j + 1))).collect(),
-            Arity::PerJointVector => (0..n)
-                .flat_map(|j| (0..3).map(move |k| (j, k, format!("{}[{},{}]", kind.name, j + 1, k + 1))))
-                .collect(),
-        };
-        for (j, k, name) in members {
-            let units = joint_units(model.joints.get(j).map_or(JointKind::Revolute, |joint| joint.kind));
-            let unit = match kind.unit {
-                OutputUnit::None => None,
-                OutputUnit::Fixed(u) => Some(u),
-                OutputUnit::Coordinate => Some(units.coordinate),
-                OutputUnit::Rate => Some(units.rate),
-                OutputUnit::Acceleration => Some(units.acceleration),
-                OutputUnit::Force => Some(units.force),
-            };
-            let (variability, ty) = if kind.boolean {
-                (Variability::Discrete, Type::Boolean { start: None })
-            } else {
-                (Variability::Continuous, Type::Real { unit, min: None, max: None, start: None })
-            };
-            let quantity = Quantity::Output(Output { kind: index, joint: j, component: k });
-            b.push(name, (kind.description)(model, j, k), (Causality::Output, variability), ty, quantity);
-        }
-    }
-}

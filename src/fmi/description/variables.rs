@@ -16,7 +16,8 @@
 //! 5. fixed integrator settings in [`Setting::ALL`] order.
 
 use super::hash::Fnv1a128;
-use super::outputs::{outputs, Output};
+use super::joints::{joint_label, joint_units};
+use super::outputs::{Arity, Output, OutputUnit, OUTPUTS};
 use crate::model::{Drive, IntegratorSettings, JointKind, Model, Parameter, Range, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 
 /// Causality of a variable.
@@ -179,7 +180,7 @@ impl Setting {
         if value.is_finite() && range.contains(value) {
             return Ok(());
         }
-        Err(format!("`{}` = {} is out of its range {range}", self.name(), crate::model::number(value)))
+        Err(format!("`{}` = {} is out of its range {range}", self.name(), crate::error::number(value)))
     }
 }
 
@@ -231,43 +232,12 @@ pub struct Variable {
     pub quantity: Quantity,
 }
 
-/// Units of the joint-space quantities of a joint kind.
-pub(super) struct JointUnits {
-    pub(super) coordinate: &'static str,
-    pub(super) rate: &'static str,
-    pub(super) acceleration: &'static str,
-    pub(super) force: &'static str,
-    stiffness: &'static str,
-    damping: &'static str,
-}
-
-pub(super) fn joint_units(kind: JointKind) -> JointUnits {
-    match kind {
-        JointKind::Revolute => JointUnits {
-            coordinate: "rad",
-            rate: "rad/s",
-            acceleration: "rad/s2",
-            force: "N.m",
-            stiffness: "N.m/rad",
-            damping: "N.m.s/rad",
-        },
-        JointKind::Prismatic => JointUnits {
-            coordinate: "m",
-            rate: "m/s",
-            acceleration: "m/s2",
-            force: "N",
-            stiffness: "N/m",
-            damping: "N.s/m",
-        },
-    }
-}
-
 /// Collects variables, numbering them as they come.
 #[derive(Default)]
-pub(super) struct Builder(Vec<Variable>);
+struct Builder(Vec<Variable>);
 
 impl Builder {
-    pub(super) fn push(
+    fn push(
         &mut self,
         name: String,
         description: String,
@@ -331,27 +301,9 @@ pub fn variables(model: &Model) -> Vec<Variable> {
 /// "; range (0, 1e6]: min = 0 excluded"; empty otherwise.
 fn excluded_min(range: Range) -> String {
     if range.min_excluded {
-        format!("; range {range}: min = {} excluded", crate::model::number(range.min))
+        format!("; range {range}: min = {} excluded", crate::error::number(range.min))
     } else {
         String::new()
-    }
-}
-
-/// "joint 3 (prismatic, flexible drive)".
-pub(super) fn joint_label(model: &Model, j: usize) -> String {
-    let joint = &model.joints[j];
-    let kind = match joint.kind {
-        JointKind::Revolute => "revolute",
-        JointKind::Prismatic => "prismatic",
-    };
-    let drive = match joint.drive {
-        Drive::Rigid => "rigid",
-        Drive::Flexible { .. } => "flexible",
-        Drive::Motor { .. } => "motor",
-    };
-    match &model.joint_names[j] {
-        Some(name) => format!("joint {} (`{name}`, {kind}, {drive} drive)", j + 1),
-        None => format!("joint {} ({kind}, {drive} drive)", j + 1),
     }
 }
 
@@ -525,4 +477,42 @@ pub fn model_hash(model_text: &str, variables: &[Variable]) -> u128 {
 pub fn guid(model_text: &str, variables: &[Variable]) -> String {
     let h = format!("{:032x}", model_hash(model_text, variables));
     format!("{{{}-{}-{}-{}-{}}}", &h[0..8], &h[8..12], &h[12..16], &h[16..20], &h[20..32])
+}
+
+/// The output variables of `model`, kind by kind in [`OUTPUTS`] order; a
+/// per-joint vector kind runs over the joints, then the components.
+fn outputs(b: &mut Builder, model: &Model) {
+    let n = model.nq();
+    let motors = model.motor_joints();
+    for (index, kind) in OUTPUTS.iter().enumerate() {
+        let members: Vec<(usize, usize, String)> = match kind.arity {
+            Arity::Single => vec![(0, 0, kind.name.to_string())],
+            Arity::SingleWithRotors if motors.is_empty() => vec![],
+            Arity::SingleWithRotors => vec![(0, 0, kind.name.to_string())],
+            Arity::PerRotor => motors.iter().enumerate().map(|(r, &j)| (j, r, format!("{}[{}]", kind.name, j + 1))).collect(),
+            Arity::Vector => (0..3).map(|k| (0, k, format!("{}[{}]", kind.name, k + 1))).collect(),
+            Arity::PerJoint => (0..n).map(|j| (j, 0, format!("{}[{}]", kind.name, j + 1))).collect(),
+            Arity::PerJointVector => (0..n)
+                .flat_map(|j| (0..3).map(move |k| (j, k, format!("{}[{},{}]", kind.name, j + 1, k + 1))))
+                .collect(),
+        };
+        for (j, k, name) in members {
+            let units = joint_units(model.joints.get(j).map_or(JointKind::Revolute, |joint| joint.kind));
+            let unit = match kind.unit {
+                OutputUnit::None => None,
+                OutputUnit::Fixed(u) => Some(u),
+                OutputUnit::Coordinate => Some(units.coordinate),
+                OutputUnit::Rate => Some(units.rate),
+                OutputUnit::Acceleration => Some(units.acceleration),
+                OutputUnit::Force => Some(units.force),
+            };
+            let (variability, ty) = if kind.boolean {
+                (Variability::Discrete, Type::Boolean { start: None })
+            } else {
+                (Variability::Continuous, Type::Real { unit, min: None, max: None, start: None })
+            };
+            let quantity = Quantity::Output(Output { kind: index, joint: j, component: k });
+            b.push(name, (kind.description)(model, j, k), (Causality::Output, variability), ty, quantity);
+        }
+    }
 }
