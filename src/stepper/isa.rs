@@ -1,7 +1,7 @@
 //! Instruction-set selection for the stepping loop.
 //!
 //! The loop that advances one communication interval
-//! (`Simulator::step_interval`) and everything it calls per sub-step are
+//! (`Integrator::step_interval`) and everything it calls per sub-step are
 //! `#[inline(always)]`, so the loop is compiled twice: once for the x86-64
 //! baseline every host has, and once with AVX2 enabled, chosen at run time
 //! when the processor has it. A shared library (the FMU) built for the

@@ -1,12 +1,67 @@
-//! Stick–slip switching (study eqs. 3.16–3.18), the edges of the drive
-//! clearances and the release of a damped drive's flank (2.1), each located
-//! inside the sub-step; and the energy account of accepted sub-steps.
+//! The sub-step integrator: the Newmark sub-steps of a communication
+//! interval, of fixed length or error-controlled, with stick–slip switching
+//! (study eqs. 3.16–3.18), the edges of the drive clearances and the release
+//! of a damped drive's flank (2.1) each located inside the sub-step; the
+//! phase decisions and their log; and the energy account of accepted
+//! sub-steps. [`Integrator`] owns what this needs (model, workspace, state,
+//! inputs, the Newmark solver); the [`Simulator`](super::Simulator) owns an
+//! integrator and adds initialization, checks and the reported quantities.
 
 use super::error_control::{error_ratio, optimal_factor, GROWTH_MAX};
-use super::simulator::Simulator;
+use super::inputs::InputPolynomial;
+use super::newmark::{NewmarkSolver, SubStep};
 use super::state::{Phase, State};
+use crate::data::Data;
 use crate::error::StepError;
 use crate::forces::drive::drive_force;
+use crate::model::Model;
+
+/// A phase change of one coordinate, for event logs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    /// Time of the change, s.
+    pub time: f64,
+    /// Coordinate, 0-based: joint `joint` for `joint` < n, else the rotor
+    /// of the (`joint` − n)-th motor drive (see [`State`]).
+    pub joint: usize,
+    /// Phase before.
+    pub from: Phase,
+    /// Phase after.
+    pub to: Phase,
+    /// Drive force F^d at the transition; for a rotor the motor torque τ_m.
+    pub drive_force: f64,
+}
+
+/// How many transitions are kept between two calls of
+/// [`Simulator::clear_transitions`]; later ones are only counted.
+pub const TRANSITION_LOG_CAPACITY: usize = 256;
+
+/// The model in use, its workspace, the state and everything a sub-step
+/// reads or keeps: the input polynomials, the Newmark solver, the phase
+/// decisions of the current instant and the transition log.
+#[derive(Debug, Clone)]
+pub(crate) struct Integrator {
+    pub(crate) model: Model,
+    pub(crate) data: Data,
+    pub(crate) state: State,
+    /// Snapshot at the start of the current sub-step: only the fields that
+    /// [`State::take_step_start`] takes are current.
+    pub(crate) start: State,
+    /// The drive inputs q*, q̇*, q̈* (prescribed q of rigid joints), per joint.
+    pub(crate) inputs: InputPolynomial,
+    /// The motor torques τ_m of the motor drives, per joint.
+    pub(crate) torques: InputPolynomial,
+    /// The Newmark iteration's workspace.
+    pub(crate) solver: NewmarkSolver,
+    /// For each coordinate, the instant (see `instant`) at which its phase was
+    /// last decided.
+    pub(crate) decided: Vec<u64>,
+    /// Number of the current instant of phase decisions; a new one starts
+    /// when time moves on, so no joint counts as decided there.
+    pub(crate) instant: u64,
+    pub(crate) transitions: Vec<Transition>,
+    pub(crate) transitions_dropped: usize,
+}
 
 /// A transition is located to this fraction of the sub-step.
 const EVENT_RESOLUTION: f64 = 1e-7;
@@ -30,7 +85,7 @@ enum Event {
     Release(usize, f64),
 }
 
-/// How [`Simulator::substep`] chooses its length.
+/// How [`Integrator::substep`] chooses its length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum StepControl {
     /// A sub-step of the fixed grid: its length is not controlled.
@@ -40,7 +95,26 @@ pub(crate) enum StepControl {
     Adaptive { shortened: bool },
 }
 
-impl Simulator {
+impl Integrator {
+    /// An integrator for `model` (validated by the caller), at rest at q = 0.
+    pub(crate) fn new(model: Model) -> Integrator {
+        let n = model.nq();
+        let state = State::new(&model);
+        Integrator {
+            data: Data::new(&model),
+            start: state.clone(),
+            state,
+            inputs: InputPolynomial::new(n),
+            torques: InputPolynomial::new(n),
+            solver: NewmarkSolver::new(&model),
+            decided: vec![0; model.n_coordinates()],
+            instant: 1,
+            transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
+            transitions_dropped: 0,
+            model,
+        }
+    }
+
     /// Takes one sub-step towards time `t_target`. With error control, a
     /// sub-step whose local error exceeds the tolerance is retried shorter
     /// (down to h_min), and the next length is proposed. If a joint's margin
@@ -350,5 +424,116 @@ impl Simulator {
             }
         }
         None
+    }
+
+    /// [`Integrator::step_interval`] compiled for the baseline instruction set.
+    #[inline(never)]
+    pub(crate) fn step_interval_baseline(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+        self.step_interval(t0, interval)
+    }
+
+    /// [`Integrator::step_interval`] compiled with AVX2.
+    ///
+    /// # Safety
+    /// The processor must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    pub(crate) unsafe fn step_interval_avx2(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+        self.step_interval(t0, interval)
+    }
+
+    /// The sub-steps of the interval from `t0` of length `interval`.
+    /// Fixed sub-steps (h_min = h_max): ceil(interval / h_max) equal ones.
+    /// Error-controlled: each of the length the last one proposed (h_min at
+    /// the start), the last one shortened to end at the interval's end, and a
+    /// remainder below two proposals split in halves so that no sliver is
+    /// left. Either way a sub-step ends early at an event. Inlined into its
+    /// two instruction-set variants, as is everything it calls per sub-step.
+    #[inline(always)]
+    fn step_interval(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+        let settings = self.model.integrator;
+        if settings.fixed_step() {
+            let h_max = settings.h_max;
+            let steps = (interval / h_max).ceil().max(1.0);
+            let h = interval / steps;
+            let steps = steps as u64;
+            for k in 1..=steps {
+                let t_grid = if k == steps { t0 + interval } else { t0 + k as f64 * h };
+                // An event shortens a sub-step; the rest of it up to the grid
+                // point is taken next.
+                while t_grid - self.state.time > 1e-9 * h {
+                    self.substep(t_grid, StepControl::Fixed)?;
+                }
+                self.state.time = t_grid;
+            }
+            return Ok(());
+        }
+        let t_end = t0 + interval;
+        loop {
+            let remaining = t_end - self.state.time;
+            if remaining <= 1e-9 * settings.h_min {
+                break;
+            }
+            let next = self.state.steps.next_h;
+            let h = if next > 0.0 { next.clamp(settings.h_min, settings.h_max) } else { settings.h_min };
+            // The last sub-step, cut to the interval's end, keeps the proposal
+            // (it may only lower it); the halves of a remainder below two
+            // proposals propose from their own error like any sub-step, or the
+            // length could never grow past an interval shorter than 2h.
+            let (target, shortened) = if remaining <= h {
+                (t_end, true)
+            } else if remaining < 2.0 * h {
+                (self.state.time + 0.5 * remaining, false)
+            } else {
+                (self.state.time + h, false)
+            };
+            self.substep(target, StepControl::Adaptive { shortened })?;
+        }
+        self.state.time = t_end;
+        Ok(())
+    }
+
+    /// Solves the state at the current time with the current phases, without
+    /// advancing (a zero-length sub-step): used at initialization, at the start
+    /// of an interval and after a phase change. The solver starts afresh, so
+    /// that everything after it depends only on the state and the inputs (an
+    /// exact continuation after a state is restored).
+    pub(crate) fn evaluate(&mut self) -> Result<(), StepError> {
+        self.start.take_step_start(&mut self.state);
+        self.solver.restart(&self.start.qdd);
+        self.solve_out_of_line(self.start.time)?;
+        self.solver.seed_history();
+        Ok(())
+    }
+
+    /// Solves the sub-step from `self.start` to time `t` with the phases in
+    /// `self.state` (see [`NewmarkSolver::solve`]).
+    #[inline(always)]
+    pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
+        let step =
+            SubStep { model: &self.model, data: &mut self.data, inputs: &self.inputs, torques: &self.torques, start: &self.start };
+        self.solver.solve(step, &mut self.state, t)
+    }
+
+    /// [`Integrator::solve`] as a call, for the solves outside the stepping
+    /// loop's common path (evaluations, locating a transition), which need
+    /// not be inlined into it.
+    #[inline(never)]
+    pub(crate) fn solve_out_of_line(&mut self, t: f64) -> Result<(), StepError> {
+        self.solve(t)
+    }
+
+    pub(crate) fn log_transition(&mut self, joint: usize, from: Phase, to: Phase) {
+        if from == to {
+            return;
+        }
+        if self.transitions.len() < TRANSITION_LOG_CAPACITY {
+            let n = self.model.nq();
+            let drive_force = if joint < n { self.state.drive_force[joint] } else { self.state.motor_torque[joint - n] };
+            self.transitions.push(Transition { time: self.state.time, joint, from, to, drive_force });
+        } else {
+            self.transitions_dropped += 1;
+        }
     }
 }
