@@ -76,7 +76,7 @@ _stickslip_apt_install() {
 }
 
 _stickslip_ensure_win64_packages() {
-    # The win64 cross-build and its tests (scripts/win64.sh, README "Platforms"):
+    # The win64 cross-build and its tests (scripts/win64.sh, docs/platforms.md):
     #   rustc-web, cargo-web   Debian's Rust (/usr/bin/rustc, /usr/bin/cargo),
     #                          which may build std itself (-Zbuild-std)
     #   rust-web-src           the sources of that std

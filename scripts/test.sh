@@ -6,7 +6,7 @@
 #   3. FMU packaging hook: scripts/build_fmu.sh, if it exists: linux64, win64
 #      and darwin64 (STICKSLIP_DARWIN64=0 leaves darwin64 out, for developers
 #      only: in CI, CI=true, tests/python/test_darwin64.py then fails; see
-#      README "Platforms")
+#      docs/platforms.md)
 #   4. win64 tests (tests/win64): the FMU's Windows DLL under wine against the
 #      linux64 .so (scripts/win64.sh)
 #   5. pytest tests/python                  (if it holds test files; `slow` tests are
@@ -83,7 +83,7 @@ fi
 # ---- 3. FMU packaging hook ------------------------------------------------------
 # >>> FMU HOOK: the FMU issue adds scripts/build_fmu.sh (builds the cdylib and zips
 # >>> the .fmu). When present it runs here, before the Python tests that load it.
-# build_fmu.sh's default platforms, darwin64 among them (README "Platforms"):
+# build_fmu.sh's default platforms, darwin64 among them (docs/platforms.md):
 # tests/python/test_darwin64.py (stage 5) checks the macOS dylib. A developer
 # may leave it out with STICKSLIP_DARWIN64=0 (those tests then skip, or fail
 # under CI=true).

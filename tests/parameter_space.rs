@@ -22,7 +22,7 @@
 //!    bands outright.
 //!
 //! `STICKSLIP_VARIANTS` (default 24) and `STICKSLIP_SEED` (default 1) set the
-//! sample; the larger run of the README is
+//! sample; the larger run of docs/error_control.md is
 //! `STICKSLIP_VARIANTS=200 cargo test --release --test parameter_space -- --nocapture`.
 
 mod common;

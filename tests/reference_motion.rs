@@ -76,7 +76,7 @@ fn eps_deviation(run: &Run, fine: &Run) -> f64 {
 }
 
 /// The order of the Newmark rule on the reference motion, which sets how
-/// many sub-steps a given accuracy of ε costs (README, "Performance"): with
+/// many sub-steps a given accuracy of ε costs (docs/performance.md): with
 /// the average-acceleration rule (β = ¼, the default) each halving of the
 /// sub-step divides the deviation of ε from the 2e-6 s run by four (4.0
 /// measured: second order); Fox–Goodwin's β = 1/12, whose phase error is of

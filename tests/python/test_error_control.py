@@ -10,7 +10,7 @@ phases seen in the stick flags sampled at 1 ms), stuck-time fractions within
 in both drives, decreasing characteristic) needs the step floor and still
 agrees. Tightening the tolerance tenfold moves max ε by less than the
 tolerance promises. Sub-step counts, not times, are asserted: the speed is
-measured by the benches (README, "Error control").
+measured by the benches (docs/error_control.md).
 """
 
 import math
