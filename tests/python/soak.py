@@ -9,7 +9,7 @@
 
 The resident set size (VmRSS of /proc/self/status) is sampled along the way; a leak of
 even one small allocation per step or per cycle would add megabytes. The long version
-of docs/fmu.md (10^4 cycles, 600 s simulated):
+of docs/verification.md (10^4 cycles, 600 s simulated):
 
     python tests/python/soak.py --cycles 10000 --seconds 600
 """
