@@ -175,6 +175,23 @@ def fmu_joints(md) -> tuple:
     return n, names
 
 
+def motor_joints(md) -> list:
+    """The joints i (1-based, in order) of an FMU that have a motor drive: those with an input
+    ``tau_m[i]`` (empty for an FMU without motor drives). Their q_star, qd_star, qdd_star are
+    only the start position at initialization; the motor torque drives them."""
+    found = [re.fullmatch(r"tau_m\[(\d+)\]", v.name) for v in md.modelVariables if v.causality == "input"]
+    return sorted(int(m.group(1)) for m in found if m)
+
+
+def moving_joints(motion) -> list:
+    """The joints i (1-based) whose q* a :class:`CycloidMotion` or :class:`SplineMotion` changes."""
+    if isinstance(motion, CycloidMotion):
+        return [i for i, segs in enumerate(motion.segments, 1) if any(c.q0 != c.q1 for c in segs)]
+    if isinstance(motion, SplineMotion):
+        return [i for i in range(1, motion.joints + 1) if np.any(motion.coefficients[:3, :, i - 1] != 0.0)]
+    return []
+
+
 def is_finite_number(x) -> bool:
     """True for a finite int or float read from TOML (not a bool, NaN or inf)."""
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
@@ -484,9 +501,19 @@ def load_motion(path, joints: int, names: dict | None = None):
 
 
 def load_motion_for(path, md):
-    """:func:`load_motion` checked against the FMU whose modelDescription (fmpy) is ``md``."""
+    """:func:`load_motion` checked against the FMU whose modelDescription (fmpy) is ``md``: also
+    refused if it moves a joint with a motor drive (:func:`motor_joints`), whose q* the FMU
+    ignores while stepping (a `hold` of it, its start position, is taken)."""
     joints, names = fmu_joints(md)
-    return load_motion(path, joints, names)
+    motion = load_motion(path, joints, names)
+    motors = set(motor_joints(md))
+    moved = [i for i in moving_joints(motion) if i in motors]
+    if moved:
+        i = moved[0]
+        raise MotionError(f"{motion.source}: joint {i} has a motor drive: the FMU ignores its q_star while "
+                          f"stepping (it is only the start position), the motor torque tau_m[{i}] drives it; "
+                          f"give joint {i} a `hold` (its start position) and set tau_m[{i}] instead")
+    return motion
 
 
 def motion_identity(path) -> dict:

@@ -16,6 +16,13 @@ arm's cycloids; its number of joints is checked against the FMU's. Without ``--e
 run lasts the file's ``end``, else until the motion is at rest plus its ``settle`` (0.5 s).
         [--check-convergence [--convergence-threshold 0.003]]
 
+An FMU with motor drives (inputs ``tau_m[i]``, e.g. one of models/reference_rrpr_motor.toml)
+runs with the motor torques held at their ``--set tau_m[i]=VALUE`` (default 0) and ``--set
+static_start=true`` if wanted; the motion's q* of a motor joint is its start position only, and
+a motion file that moves a motor joint is refused. A ``--set`` the FMU refuses or does not
+know, a motion file that does not fit the FMU and a step the FMU refuses end the command with
+one line on stderr (exit status 2).
+
 ``--check-convergence`` runs the motion a second time with a tenfold tighter
 ``error_tolerance`` (fixed sub-steps: halved), prints the relative spread of every
 metric of a sweep row between the two runs (:mod:`stickslip.convergence`), warns on
@@ -34,8 +41,8 @@ import time
 from pathlib import Path
 
 from .convergence import DEFAULT_THRESHOLD
-from .fmu import DEFAULT_FMU, ROOT, communication_points, initialize, input_references
-from .motion import RUN_TIME, MotionError, load_motion_for, reference_inputs
+from .fmu import DEFAULT_FMU, ROOT, LogCapture, communication_points, initialize, input_references
+from .motion import RUN_TIME, MotionError, load_motion_for, motor_joints, reference_inputs
 
 
 def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, parameters: dict | None = None,
@@ -47,9 +54,11 @@ def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, p
     per joint at t (:mod:`stickslip.motion`). ``motion``: the path of a motion file
     (docs/motion.md), checked against this FMU's joints, used instead of ``inputs``; with it
     ``end = None`` means the file's stop time. Returns a dict: ``time`` and every output by
-    name, as lists (Booleans as 0/1).
+    name, as lists (Booleans as 0/1). What the FMU refuses raises fmpy's FMICallException with
+    the FMU's logged fmi2Error/fmi2Fatal messages in its attribute ``fmu_messages``.
     """
     from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave
 
     fmu = str(fmu)
@@ -68,13 +77,14 @@ def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, p
     real_vrs = [v.valueReference for v in real_out]
     bool_vrs = [v.valueReference for v in bool_out]
     rows = []
+    log = LogCapture()
 
     def record(t):
         # One tuple per communication point; split into columns at the end.
         rows.append((t, *slave.getReal(real_vrs), *(1 if x else 0 for x in slave.getBoolean(bool_vrs))))
 
     try:
-        slave.instantiate()
+        slave.instantiate(callbacks=log.callbacks)
         initialize(slave, md, parameters or {}, in_vrs, inputs, interval)
         record(0.0)
         steps = round(end / interval)
@@ -87,8 +97,12 @@ def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, p
         if progress:
             print(file=sys.stderr)
         slave.terminate()
+    except FMICallException as e:
+        e.fmu_messages = [m for (_, status, _, m) in log.records if status >= 3]
+        raise
     finally:
         slave.freeInstance()
+        log.close()
         shutil.rmtree(unzipdir, ignore_errors=True)
     names = ["time"] + [v.name for v in real_out + bool_out]
     return {name: list(column) for name, column in zip(names, zip(*rows))} if rows else {name: [] for name in names}
@@ -124,11 +138,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(a: argparse.Namespace) -> int:
-    """``stickslip simulate``: the reference motion (or ``--motion``) through the FMU, written as CSV."""
+    """``stickslip simulate``: the reference motion (or ``--motion``) through the FMU, written as CSV.
+    What cannot run (a --set the FMU refuses or does not know, a motion file that does not fit
+    the FMU, a step the FMU refuses) ends it with one line on stderr and exit status 2."""
+    from fmpy.fmi1 import FMICallException
+
     parameters = {}
     for item in a.set:
-        name, _, value = item.partition("=")
-        parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
+        name, eq, value = item.partition("=")
+        try:
+            if not eq or not name:
+                raise ValueError
+            parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
+        except ValueError:
+            print(f"stickslip simulate: --set {item!r}: expected NAME=VALUE with a number, true or false",
+                  file=sys.stderr)
+            return 2
     inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
     if a.motion is not None:
         try:
@@ -138,8 +163,19 @@ def main(a: argparse.Namespace) -> int:
             return 2
         label, end = f"motion {a.motion}", inputs.stop_time if a.end is None else a.end
         print(f"motion: {inputs.describe()}; simulating {end:g} s")
+    note = motor_note(a.fmu, parameters)
+    if note:
+        print(note)
     wall = time.perf_counter()
-    result = run(a.fmu, end, a.interval, parameters, inputs, progress=label)
+    try:
+        result = run(a.fmu, end, a.interval, parameters, inputs, progress=label)
+    except ValueError as e:  # a --set name the FMU does not have
+        print(f"stickslip simulate: {e}", file=sys.stderr)
+        return 2
+    except FMICallException as e:
+        reason = " ".join("; ".join(getattr(e, "fmu_messages", [])).split()) or "(the FMU logged no message)"
+        print(f"stickslip simulate: {e} {reason}", file=sys.stderr)
+        return 2
     simulated = time.perf_counter()
     write_csv(result, a.out)
     print(f"simulated {end} s through {a.fmu} in {simulated - wall:.2f} s wall "
@@ -155,6 +191,26 @@ def main(a: argparse.Namespace) -> int:
         elif check.warning():
             print(check.warning(), file=sys.stderr, flush=True)
     return 0
+
+
+def motor_note(fmu, parameters: dict) -> str | None:
+    """For an FMU with motor drives, the line that says which joints they drive and the motor
+    torques the run holds (``--set tau_m[i]=VALUE``, else the FMU's start value); None for
+    another FMU (or one fmpy cannot read: :func:`run` reports that)."""
+    from fmpy import read_model_description
+
+    try:
+        md = read_model_description(str(fmu))
+    except Exception:  # noqa: BLE001
+        return None
+    motors = motor_joints(md)
+    if not motors:
+        return None
+    start = {v.name: v.start for v in md.modelVariables}
+    torques = ", ".join(f"tau_m[{i}] = {float(parameters.get(f'tau_m[{i}]', start[f'tau_m[{i}]'] or 0.0)):g}"
+                        for i in motors)
+    return (f"motor drives on joints {', '.join(map(str, motors))}: the motion's q* is their start position "
+            f"only; the motors run on {torques} N.m, held constant (--set tau_m[i]=VALUE)")
 
 
 def motion_of(path, fmu):

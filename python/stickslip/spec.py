@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from .fmu import DEFAULT_FMU
-from .motion import is_finite_number, motion_identity
+from .motion import is_finite_number, motion_identity, motor_joints
 
 DISTRIBUTIONS = {  # name -> (what the two numbers are, check, message when the check fails)
     "uniform": ("[low, high]", lambda a, b: a < b, "needs low < high"),
@@ -239,9 +239,15 @@ def _refusal(v) -> str | None:
 
 
 def check_against(spec: Spec, model_description) -> None:
-    """Refuses names the FMU does not have or that are not tunable Real parameters, and grid
-    values or uniform ranges outside a parameter's declared [min, max]."""
+    """Refuses an FMU with motor drives (its motors would run at tau_m = 0), names the FMU does
+    not have or that are not tunable Real parameters, and grid values or uniform ranges outside
+    a parameter's declared [min, max]."""
     where = spec.where
+    motors = motor_joints(model_description)
+    if motors:
+        raise SpecError(f"{where}: fmu {spec.fmu} has motor drives on joints {', '.join(map(str, motors))} (inputs "
+                        f"tau_m[i]): a sweep drives the joints through q* only and cannot set the motor torques; "
+                        f"sweep an FMU without motor drives")
     by_name = {v.name: v for v in model_description.modelVariables}
     for name in spec.parameters:
         v = by_name.get(name)

@@ -34,6 +34,9 @@ Command line (the main job runs it after the reference run)::
     stickslip study [--out results/study] [--fixed-step H] [--step-h 2e-6]
         [--cases step,friction,...] [--end 2.0] [--interval 1e-4] [--fmu FILE] [--motion MOTION.toml]
 
+An FMU with motor drives (inputs ``tau_m[i]``) is refused with one line: the cases prescribe
+the drive positions q* of flexible drives, which it ignores while stepping.
+
 ``--motion`` runs every variant with a motion file (docs/motion.md) instead of the reference
 motion; the claims are then checked on that motion, over the same time windows (the vibration
 over 0-1.5 s, the middle of the motion 0.3-1.2 s), which were chosen for the reference motion.
@@ -473,6 +476,24 @@ def summary_markdown(results: dict, settings: dict) -> str:
     return "\n".join(lines)
 
 
+def motor_refusal(fmu) -> str | None:
+    """Why the study cannot run on the FMU ``fmu``: its cases prescribe the drive positions q*
+    of the flexible drives, which an FMU with motor drives ignores (None for another FMU, or
+    one fmpy cannot read: the run reports that)."""
+    from fmpy import read_model_description
+
+    from .motion import motor_joints
+
+    try:
+        motors = motor_joints(read_model_description(str(fmu)))
+    except Exception:  # noqa: BLE001
+        return None
+    if not motors:
+        return None
+    return (f"{fmu} has motor drives on joints {', '.join(map(str, motors))} (driven by the inputs tau_m[i]): the "
+            f"study's cases prescribe the drive positions q* of flexible drives; use an FMU without motor drives")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default=str(ROOT / "results" / "study"))
     p.add_argument("--fixed-step", type=float, default=None,
@@ -495,6 +516,9 @@ def main(a: argparse.Namespace) -> int:
     unknown = [c for c in chosen if c not in all_cases]
     if unknown:
         raise SystemExit(f"stickslip study: unknown case(s) {unknown}; choose from {list(all_cases)}")
+    refusal = motor_refusal(a.fmu)
+    if refusal:
+        raise SystemExit(f"stickslip study: {refusal}")
     motion, end = None, RUN_TIME if a.end is None else a.end
     if a.motion is not None:
         from .motion import MotionError

@@ -6,7 +6,11 @@ through fmpy's FMU2Slave: the life-cycle calls in any order, steps with good and
 communication points and step sizes, sets of any variable (inputs, parameters, settings,
 outputs, Booleans) to extreme values (+-1e300, +-1e-300, +-0, NaN, +-inf and ordinary
 ones), input derivatives, FMU states taken, restored, serialized, mutated (bit flips,
-truncation, extension, zeros) and deserialized. An FMU of a URDF arm (a URDF in its
+truncation, extension, zeros) and deserialized. An FMU with motor drives (inputs tau_m[i],
+e.g. one of models/reference_rrpr_motor.toml) also gets calls aimed at them: tau_m and its
+derivatives of orders 0 to 3, the fixed gear_ratio and start values theta_m_start,
+omega_m_start, static_start in any state, the tunable J_m, b_m, tau_c, and starts from a
+static equilibrium (static_start) or given rotor states. An FMU of a URDF arm (a URDF in its
 resources/) is also instantiated, now and then, from a copy of its resources whose URDF is
 mutated the same way or has a number replaced by an extreme or garbage. It checks what a
 master relies on:
@@ -139,7 +143,15 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
     real_outputs = [v.valueReference for v in reals if v.causality == "output"]
     inputs = [v for v in reals if v.causality == "input"]
     counts = {"calls": 0, "ok": 0, "errors": 0, "discards": 0, "steps_ok": 0, "states_mutated": 0,
-              "states_restored": 0, "corrupt_urdf_refused": 0}
+              "states_restored": 0, "corrupt_urdf_refused": 0, "motor_calls": 0}
+    # Motor drives: their torque inputs, and the motor variables by kind.
+    by_name = {v.name: v for v in md.modelVariables}
+    motor = {
+        "torque": [v for v in inputs if v.name.startswith("tau_m[")],
+        "fixed": [v for v in reals if v.name.startswith(("gear_ratio[", "theta_m_start[", "omega_m_start["))],
+        "tunable": [v for v in reals if v.name.startswith(("J_m[", "b_m[", "tau_c["))],
+    }
+    static_start = by_name.get("static_start")
     corrupt = CorruptResources(unzipdir)
     violations = []
     slave = None
@@ -186,6 +198,24 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
     weights = [40, 15, 12, 6, 3, 2, 2, 2, 3, 3, 3, 4, 2, 1, 1, 2, 3]
     if corrupt.urdfs:
         actions, weights = actions + ["corrupt_urdf"], weights + [2]
+    if motor["torque"]:
+        actions, weights = actions + ["motor"], weights + [10]
+
+    def motor_call():
+        """One call aimed at the motor drives."""
+        counts["motor_calls"] += 1
+        kind = rng.choice(["torque", "torque", "derivative", "derivative", "fixed", "tunable", "static_start"])
+        if kind == "torque":
+            v = rng.choice(motor["torque"])
+            slave.setReal([v.valueReference], [_value(rng, 0.05)])
+        elif kind == "derivative":
+            v = rng.choice(motor["torque"])
+            slave.setRealInputDerivatives([v.valueReference], [rng.choice([1, 1, 2, 2, 3, 0])], [_value(rng, 1.0)])
+        elif kind in ("fixed", "tunable"):
+            v = rng.choice(motor[kind])
+            slave.setReal([v.valueReference], [_value(rng, v.start)])
+        elif static_start is not None:
+            slave.setBoolean([static_start.valueReference], [rng.random() < 0.5])
 
     slave = new_slave()
     recover = True
@@ -257,6 +287,10 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
                         slave.setReal([v.valueReference], [_value(rng, v.start)])
                     except FMICallException:
                         pass
+                if motor["torque"] and static_start is not None:
+                    # A static start (rotors turned to hold the links) or, with start values,
+                    # given rotor states.
+                    slave.setBoolean([static_start.valueReference], [rng.random() < 0.5])
                 slave.enterInitializationMode()
                 slave.setReal([v.valueReference for v in inputs], [rng.gauss(0.0, 0.3) for _ in inputs])
                 slave.exitInitializationMode()
@@ -267,6 +301,8 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
                 slave.setBoolean([v.valueReference], [rng.random() < 0.5])
             elif action == "corrupt_urdf":
                 corrupt_instantiation()
+            elif action == "motor":
+                motor_call()
             counts["ok"] += 1
         except FMICallException as e:
             status = getattr(e, "status", None)

@@ -27,7 +27,17 @@ after the start value has been set back.
 
 The range checks run against the reference FMU and against the FMU of a URDF arm (the
 KUKA iiwa of models/urdf/kuka_iiwa, 7 joints, built once per process by urdf_fmus.py): its
-cases carry the id prefix ``iiwa:``.
+cases carry the id prefix ``iiwa:``. And against the FMU with motor drives
+(models/reference_rrpr_motor.toml, motor_fmus.py), for the variables the reference FMU does not
+have (tau_m, gear_ratio, J_m, b_m, tau_c): id prefix ``motor:``. For it also:
+
+* tau_m's derivatives (fmi2SetRealInputDerivatives) at their ranges, order 1 [-1e9, 1e9] and
+  order 2 [-1e12, 1e12]: each bound accepted, the next double beyond it, +-1e300 and NaN
+  refused with fmi2Error and a message naming `tau_m[i]` and showing the range; a call with
+  one such value among good ones takes none of them: 20 steps afterwards equal, bit for bit,
+  those of an instance that never saw the refused calls;
+* NaN (and +-inf) in every motor variable that can be set (inputs, parameters, start values
+  theta_m_start, omega_m_start) is refused with fmi2Error naming it, the value kept.
 
 Then the reports of issue 13, one by one: ``m[2] = 1e300``, ``slider_b[3] = 1e300``,
 ``q_star[3] = -1e300``, ``qd_star[2] = +-1e300`` are refused (the mass's message is
@@ -42,14 +52,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import fmi2Error, fmi2OK, fmi2Real, fmi2True, fmi2ValueReference
+from fmpy.fmi2 import fmi2Error, fmi2Integer, fmi2OK, fmi2Real, fmi2True, fmi2ValueReference
 
 from helpers import INTERVAL, Slave, fmu_path, input_vector, model_description
+from motor_fmus import MOTOR_JOINTS, motor_fmu
 from urdf_fmus import iiwa_fmu
 
 # Variables (by name without the joint index) whose lower bound is excluded: the
 # README's range table, `Range::positive` and the settings' exclusive bounds.
-EXCLUSIVE_MIN = {"k", "slider_a", "m", "error_tolerance", "tolerance"}
+EXCLUSIVE_MIN = {"k", "slider_a", "m", "error_tolerance", "tolerance", "J_m", "gear_ratio"}
 
 # "[-1000, 1000]", "(0, 1e6]", "[1e-9, 0.01]": an interval as the FMU writes one.
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -89,9 +100,27 @@ def _urdf_fmus():
 
 
 URDF_FMUS, URDF_BUILD_ERROR = _urdf_fmus()
-# The FMU of every case: the reference's (id = the variable) and the URDF arm's (id "iiwa:…").
-FMUS = {"": str(fmu_path()), **URDF_FMUS}
+
+
+def _motor_fmus():
+    """{"motor": path} of the motor FMU, built at collection (only when the FMU under test
+    exists); a failed build is one failing case, not a collection error."""
+    if not fmu_path().is_file():
+        return {}, None
+    try:
+        return {"motor": str(motor_fmu())}, None
+    except Exception as e:  # noqa: BLE001 -- reported by the case below
+        return {}, str(e)
+
+
+MOTOR_FMUS, MOTOR_BUILD_ERROR = _motor_fmus()
+# The FMU of every case: the reference's (id = the variable), the URDF arm's (id "iiwa:…") and
+# the motor FMU's (id "motor:…", only its variables the reference FMU does not have).
+FMUS = {"": str(fmu_path()), **URDF_FMUS, **MOTOR_FMUS}
 RANGED_BY_FMU = {key: _ranged_variables(path) for key, path in FMUS.items()}
+if "motor" in RANGED_BY_FMU:
+    _reference_names = {r[0] for r in RANGED_BY_FMU[""]}
+    RANGED_BY_FMU["motor"] = [r for r in RANGED_BY_FMU["motor"] if r[0] not in _reference_names]
 
 
 def _params(bound):
@@ -100,13 +129,17 @@ def _params(bound):
         prefix = f"{key}:" if key else ""
         cases += [pytest.param((FMUS[key], *r), id=prefix + r[0]) for r in ranged if r[1 if bound == "min" else 2] is not None]
     if URDF_BUILD_ERROR:
-        cases.append(pytest.param(None, id="iiwa:build"))
+        cases.append(pytest.param("build:iiwa", id="iiwa:build"))
+    if MOTOR_BUILD_ERROR:
+        cases.append(pytest.param("build:motor", id="motor:build"))
     return cases or [_NO_FMU]
 
 
 def _unpack(var):
-    if var is None and URDF_BUILD_ERROR:
+    if var == "build:iiwa":
         pytest.fail(f"the URDF FMU could not be built:\n{URDF_BUILD_ERROR}")
+    if var == "build:motor":
+        pytest.fail(f"the motor FMU could not be built:\n{MOTOR_BUILD_ERROR}")
     return var
 
 
@@ -253,6 +286,137 @@ def test_urdf_fmu_declares_the_ranges_of_the_reference():
     assert {"k", "mu_k", "d_A", "m", "q_star", "qd_star", "qdd_star", "h_max"} <= set(iiwa)
     differ = {b: (reference[b], iiwa[b]) for b in iiwa if b in reference and reference[b] != iiwa[b]}
     assert not differ, differ
+
+
+def _motor_path():
+    if not fmu_path().is_file():
+        pytest.skip(f"{fmu_path()} does not exist")
+    assert not MOTOR_BUILD_ERROR, MOTOR_BUILD_ERROR
+    return FMUS["motor"]
+
+
+def test_motor_fmu_declares_the_ranges_of_its_motor_variables():
+    """The motor FMU declares min and max for every tunable parameter and input (not the start
+    values q_start, qd_start, theta_m_start, omega_m_start), the reference FMU's bounds for
+    every variable the two share, and the motor variables' own: tau_m [-1e6, 1e6], gear_ratio
+    (0, 1e6], J_m (0, 1e3], b_m and tau_c [0, 1e6]."""
+    path = _motor_path()
+    md = model_description(path)
+    missing = [
+        v.name
+        for v in md.modelVariables
+        if v.type == "Real"
+        and v.causality in ("parameter", "input")
+        and not _base(v.name).endswith("_start")
+        and (v.min is None or v.max is None)
+    ]
+    assert not missing, f"no min or max declared: {missing}"
+    motor = {r[0]: r[1:3] for r in _ranged_variables(path)}
+    reference = {r[0]: r[1:3] for r in RANGED_BY_FMU[""]}
+    differ = {n: (reference[n], motor[n]) for n in reference if motor.get(n) != reference[n]}
+    assert not differ, differ
+    expected = {"tau_m": (-1e6, 1e6), "gear_ratio": (0.0, 1e6), "J_m": (0.0, 1e3), "b_m": (0.0, 1e6),
+                "tau_c": (0.0, 1e6)}
+    got = {f"{b}[{i}]": motor.get(f"{b}[{i}]") for b in expected for i in MOTOR_JOINTS}
+    assert got == {f"{b}[{i}]": r for b, r in expected.items() for i in MOTOR_JOINTS}, got
+    assert {r[0] for r in RANGED_BY_FMU["motor"]} == set(got)
+
+
+def _derivative_status(s, names, orders, values):
+    """fmi2SetRealInputDerivatives of several values: the status it returns."""
+    n = len(names)
+    vrs = (fmi2ValueReference * n)(*s.vars.vrs(names))
+    try:
+        return s.fmu.fmi2SetRealInputDerivatives(s.fmu.component, vrs, n, (fmi2Integer * n)(*orders),
+                                                 (fmi2Real * n)(*values))
+    except FMICallException as e:
+        return e.status
+
+
+def _motor_steps(s, steps=20):
+    """``steps`` steps of 1 ms with tau_m = 0.05 N.m on every motor joint (the derivatives as
+    they are): the outputs after each."""
+    rows = []
+    for k in range(steps):
+        s.set_inputs(input_vector(0.0))
+        for j in MOTOR_JOINTS:
+            s.set(f"tau_m[{j}]", 0.05)
+        s.fmu.doStep(k * INTERVAL, INTERVAL)
+        rows.append(s.outputs())
+    return np.array(rows)
+
+
+TAU_M_DERIVATIVE_RANGES = {1: 1e9, 2: 1e12}  # order: the bound of the symmetric range
+
+
+@pytest.mark.parametrize("order", list(TAU_M_DERIVATIVE_RANGES))
+@pytest.mark.parametrize("joint", MOTOR_JOINTS)
+def test_tau_m_derivative_ranges(joint, order):
+    """fmi2SetRealInputDerivatives of tau_m[i] of order 1 (2): exactly +-1e9 (+-1e12) is
+    accepted (fmi2OK); the next double beyond each bound, +-1e300 and NaN are refused with
+    fmi2Error and an fmi2Error message naming `tau_m[i]` and showing the range; a refused
+    value in a call with a good one (the other motor's) takes neither. After the refusals the
+    derivatives are those set before them (small rates): 20 steps equal those of an instance
+    that only made the good calls, bit for bit."""
+    path = _motor_path()
+    bound = TAU_M_DERIVATIVE_RANGES[order]
+    name = f"tau_m[{joint}]"
+    other = f"tau_m[{next(j for j in MOTOR_JOINTS if j != joint)}]"
+    good = {name: 2.0, other: -1.0}  # the derivatives set before the refused calls
+
+    def initialized(label):
+        s = Slave(label, path=path)
+        s.initialize()
+        assert _derivative_status(s, list(good), [order, order], list(good.values())) == fmi2OK, s.log.text()
+        return s
+
+    with initialized("clean") as s:
+        clean = _motor_steps(s)
+    with initialized(f"derivative-{name}-{order}") as s:
+        for bad in (math.nextafter(bound, math.inf), math.nextafter(-bound, -math.inf), 1e300, -1e300, math.nan):
+            s.log.clear()
+            status = _derivative_status(s, [name], [order], [bad])
+            assert status == fmi2Error, f"{name}, order {order} = {bad!r}: status {status}; log:\n{s.log.text()}"
+            named = [m for (_, st, _, m) in s.log.records if st == fmi2Error and f"`{name}`" in m]
+            assert named, f"{name}, order {order} = {bad!r}: no fmi2Error message naming it:\n{s.log.text()}"
+            if not math.isnan(bad):
+                assert any((False, -bound, bound) in _intervals(m) for m in named), named
+            # the same value after a good one in one call: neither taken
+            status = _derivative_status(s, [other, name], [order, order], [123.0, bad])
+            assert status == fmi2Error, status
+        assert _motor_steps(s).tobytes() == clean.tobytes()
+        for edge in (bound, -bound):
+            s.log.clear()
+            assert _derivative_status(s, [name], [order], [edge]) == fmi2OK, s.log.text()
+
+
+def _settable_motor_variables():
+    """(name, fixed) of the motor FMU's Real inputs and parameters the reference FMU does not
+    have, start values included."""
+    if not MOTOR_FMUS:
+        return []
+    reference = {v.name for v in model_description(str(fmu_path())).modelVariables}
+    return [(v.name, v.variability == "fixed") for v in model_description(MOTOR_FMUS["motor"]).modelVariables
+            if v.type == "Real" and v.causality in ("parameter", "input") and v.name not in reference]
+
+
+@pytest.mark.parametrize("var", [pytest.param(v, id=f"motor:{v[0]}") for v in _settable_motor_variables()]
+                         or [pytest.param(None, marks=pytest.mark.skip(reason="no motor FMU"))])
+def test_motor_variables_refuse_nan_and_infinity(var):
+    """NaN, +inf and -inf set to a motor variable (tau_m, gear_ratio, J_m, b_m, tau_c,
+    theta_m_start, omega_m_start) are refused with fmi2Error and an fmi2Error message naming
+    it; the value is kept; the instance then steps."""
+    path = _motor_path()
+    name, fixed = var
+    with _slave(name, fixed, path) as s:
+        v0 = s.get(name)
+        for bad in (math.nan, math.inf, -math.inf):
+            s.log.clear()
+            status = _set_status(s, name, bad)
+            assert status == fmi2Error, f"`{name}` = {bad!r}: status {status}; log:\n{s.log.text()}"
+            assert any(f"`{name}`" in m for (_, st, _, m) in s.log.records if st == fmi2Error), s.log.text()
+            assert s.get(name) == v0
+        _still_usable(s, name, fixed, v0)
 
 
 @pytest.mark.parametrize("var", _params("max"))
