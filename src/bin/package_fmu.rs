@@ -19,11 +19,16 @@
 //! `binaries/win64/StickSlipManipulator.dll` and
 //! `binaries/darwin64/StickSlipManipulator.dylib` when given, and
 //! `resources/model.toml` (the model file as given, which the FMU reads at
-//! fmi2Instantiate and whose text the GUID is derived from).
+//! fmi2Instantiate and whose text the GUID is derived from). For the tools
+//! that import it (FMI 2.0 §2.3): `documentation/index.html`, the FMU's
+//! documentation written from the same model and variables as the
+//! modelDescription (`description::documentation_html`), and `model.png`,
+//! its icon, a picture of the chain (`fmi::icon`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use stick_slip_manipulator::fmi::description::{model_description_xml, MODEL_IDENTIFIER};
+use stick_slip_manipulator::fmi::description::{documentation_html, model_description_xml, MODEL_IDENTIFIER};
+use stick_slip_manipulator::fmi::icon::model_icon;
 use stick_slip_manipulator::model::{with_urdf_file_name, ModelSource, REFERENCE_RRPR_TOML};
 use stick_slip_manipulator::Model;
 use zip::write::SimpleFileOptions;
@@ -113,6 +118,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         binaries.push((format!("binaries/darwin64/{MODEL_IDENTIFIER}.dylib"), read_library(dylib)?));
     }
     let xml = model_description_xml(&model, &text);
+    let documentation = documentation_html(&model, &text);
+    let icon = model_icon(&model);
 
     if let Some(dir) = out.parent() {
         std::fs::create_dir_all(dir)?;
@@ -126,6 +133,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .last_modified_time(DateTime::default());
     zip.start_file("modelDescription.xml", options)?;
     zip.write_all(xml.as_bytes())?;
+    zip.start_file("model.png", options)?;
+    zip.write_all(&icon)?;
+    zip.start_file("documentation/index.html", options)?;
+    zip.write_all(documentation.as_bytes())?;
     for (name, binary) in &binaries {
         zip.start_file(name.as_str(), options.unix_permissions(0o755))?;
         zip.write_all(binary)?;

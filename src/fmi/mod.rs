@@ -10,11 +10,14 @@
 //!   `snapshot`;
 //! * [`description`] — the variables and value references of a model and
 //!   the `modelDescription.xml` built from them (shared with `build.rs` and
-//!   the `package_fmu` binary).
+//!   the `package_fmu` binary), and the FMU's `documentation/index.html`;
+//! * [`icon`] — the FMU's `model.png`, a picture of the chain (used by the
+//!   `package_fmu` binary).
 
 mod boundary;
 pub mod description;
 mod exports;
+pub mod icon;
 mod instance;
 mod lifecycle;
 mod logger;

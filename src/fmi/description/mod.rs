@@ -1,5 +1,6 @@
 //! What the FMU declares: its variables with their value references, units,
-//! log categories, GUID, and the `modelDescription.xml` built from them.
+//! log categories, GUID, and the `modelDescription.xml` built from them (and
+//! the FMU's `documentation/index.html`, from the same variables).
 //!
 //! This is the one place that lays out the value references. It is pure data
 //! derived from a [`Model`](crate::model::Model): the runtime (`fmi2GetReal` …),
@@ -9,6 +10,7 @@
 //! `crate::model`, `crate::error`, `crate::math`, `crate::stepper::State`,
 //! `super::…` and the `quick_xml` crate.
 
+mod documentation;
 mod hash;
 mod joints;
 mod outputs;
@@ -16,6 +18,7 @@ mod units;
 mod variables;
 mod writer;
 
+pub use documentation::{documentation_html, drive_colour_index, escape_html, DRIVE_COLOURS};
 pub use hash::{fnv1a_64, Fnv1a128};
 pub use outputs::{Arity, Output, OutputKind, OutputUnit, OUTPUTS};
 pub use units::{Unit, UNITS};
