@@ -138,6 +138,24 @@ pub enum StepError {
         /// Time of the failed sub-step, s.
         time: f64,
     },
+    /// The interval cost more evaluations than a converging run could
+    /// (see `work_budget` in `src/stepper/integrator.rs`): time constants far
+    /// below the smallest sub-step.
+    #[error(
+        "the step needed more than {evaluations} evaluations in {substeps} sub-steps by t = {time} s without finishing: \
+         the model has time constants far below h_min = {h_min:e} s (a rotor of negligible reflected inertia N^2 J_m against \
+         a strong gear damper, or stiffness far beyond the chain's masses); change those parameters"
+    )]
+    TooMuchWork {
+        /// Time reached, s.
+        time: f64,
+        /// Evaluations spent in the interval.
+        evaluations: u64,
+        /// Sub-steps accepted since initialization.
+        substeps: u64,
+        /// The smallest sub-step, s.
+        h_min: f64,
+    },
     /// The simulation was advanced before it was initialized.
     #[error("the simulation is not initialized")]
     NotInitialized,

@@ -579,6 +579,7 @@ impl Instance {
             Err(
                 e @ (StepError::InvalidModel { .. }
                 | StepError::NotConverged { .. }
+                | StepError::TooMuchWork { .. }
                 | StepError::SingularMassMatrix { .. }
                 | StepError::NonFiniteState { .. }),
             ) => {
@@ -589,7 +590,7 @@ impl Instance {
                 // so a shorter step does not help; other values or inputs can.
                 let remedy = match e {
                     StepError::InvalidModel { .. } => "correct the parameters and repeat the step",
-                    StepError::NotConverged { .. } => {
+                    StepError::NotConverged { .. } | StepError::TooMuchWork { .. } => {
                         "a shorter communication step does not help; change the parameters or inputs named above, \
                          or restore an FMU state"
                     }

@@ -14,7 +14,7 @@ use super::state::{Phase, State};
 use crate::data::Data;
 use crate::error::StepError;
 use crate::forces::drive::drive_force;
-use crate::model::Model;
+use crate::model::{IntegratorSettings, Model};
 
 /// A phase change of one coordinate, for event logs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -182,7 +182,11 @@ impl Integrator {
             if hi - lo <= EVENT_RESOLUTION {
                 break;
             }
-            let theta = (lo + (hi - lo) * g_lo / (g_lo - g_hi)).clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
+            // Regula falsi; a margin that is infinite at an end (a drive
+            // whose clearance opened there has no flank force) bisects.
+            let secant = lo + (hi - lo) * g_lo / (g_lo - g_hi);
+            let theta = if secant.is_finite() { secant } else { 0.5 * (lo + hi) };
+            let theta = theta.clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
             self.solve_out_of_line(t0 + theta * h)?;
             let g = self.event_value(event, &self.state);
             if g < 0.0 {
@@ -453,6 +457,7 @@ impl Integrator {
     #[inline(always)]
     fn step_interval(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
         let settings = self.model.integrator;
+        let budget = work_budget(&settings, interval);
         if settings.fixed_step() {
             let h_max = settings.h_max;
             let steps = (interval / h_max).ceil().max(1.0);
@@ -464,6 +469,7 @@ impl Integrator {
                 // point is taken next.
                 while t_grid - self.state.time > 1e-9 * h {
                     self.substep(t_grid, StepControl::Fixed)?;
+                    self.check_work(budget)?;
                 }
                 self.state.time = t_grid;
             }
@@ -489,9 +495,21 @@ impl Integrator {
                 (self.state.time + h, false)
             };
             self.substep(target, StepControl::Adaptive { shortened })?;
+            self.check_work(budget)?;
         }
         self.state.time = t_end;
         Ok(())
+    }
+
+    /// [`StepError::TooMuchWork`] once the interval has cost more than
+    /// `budget` evaluations.
+    #[inline(always)]
+    fn check_work(&self, budget: u64) -> Result<(), StepError> {
+        let evaluations = self.solver.iterations();
+        if evaluations <= budget {
+            return Ok(());
+        }
+        Err(StepError::TooMuchWork { time: self.state.time, evaluations, substeps: self.state.steps.accepted, h_min: self.model.integrator.h_min })
     }
 
     /// Solves the state at the current time with the current phases, without
@@ -536,4 +554,16 @@ impl Integrator {
             self.transitions_dropped += 1;
         }
     }
+}
+
+/// The most evaluations an interval of length `interval` may cost: four
+/// times the iteration limit for every sub-step of length h_min it spans
+/// (at least one). A converging run costs one to three evaluations per
+/// sub-step and a few dozen per located event; a model whose time constants
+/// lie far below h_min (a rotor of vanishing reflected inertia against a
+/// strong damper) can otherwise halve and iterate for minutes within one
+/// communication step, and a master would hang.
+fn work_budget(settings: &IntegratorSettings, interval: f64) -> u64 {
+    let substeps = (interval / settings.h_min).ceil().max(1.0);
+    (4.0 * settings.max_iterations as f64 * substeps).min(u64::MAX as f64 / 2.0) as u64
 }

@@ -380,8 +380,6 @@ impl Simulator {
     fn advance_inner(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
         let t0 = self.core.state.time;
         self.core.inputs.set(t0, inputs);
-        // The motor torques were set at this communication point (or before).
-        self.core.torques.t0 = t0;
         // Inputs may differ from the previous interval's extrapolation: make
         // accelerations and phases consistent with them before stepping. The
         // drives did the work of that jump of q* (or of a rigid joint's q, q̇).
