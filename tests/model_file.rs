@@ -10,11 +10,26 @@
 // leaving the model untouched, while relations between parameters are left to
 // `Model::validate`. Long generated chains (24 and `MAX_JOINTS` joints) must
 // parse and validate, one joint more must not.
+//
+// Motor drives (`drive = { type = "motor", k, h, clearance, gear_ratio,
+// rotor_inertia, motor_viscous, motor_coulomb }`): the shipped
+// `models/reference_rrpr_motor.toml` parses with every field to the reference
+// arm with motors on joints 1 and 3 (and equals `Model::reference_rrpr_motor()`);
+// h, clearance, motor_viscous and motor_coulomb default to 0; missing
+// gear_ratio or rotor_inertia, an unknown key, an unknown drive type are
+// syntax errors naming the key and the line; values outside GEAR_RATIO
+// (0, 1e6], ROTOR_INERTIA (0, 1000], MOTOR_VISCOUS and MOTOR_COULOMB [0, 1e6]
+// are refused naming `joint[i].drive.<key>`; the four motor parameters
+// (gear_ratio, J_m, b_m, tau_c) exist on motor joints only, are range
+// checked by `set_parameter`, and changing them keeps the model's layout.
 
-use stick_slip_manipulator::model::{ContactGeometry, Drive, JointKind, Parameter, MAX_JOINTS, REFERENCE_RRPR_TOML};
-use stick_slip_manipulator::{Model, ModelError};
+use stick_slip_manipulator::model::{
+    ContactGeometry, Drive, JointKind, Parameter, Range, Rotor, MAX_JOINTS, REFERENCE_RRPR_MOTOR_TOML, REFERENCE_RRPR_TOML,
+};
+use stick_slip_manipulator::{Model, ModelError, Simulator};
 
 const REFERENCE_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/reference_rrpr.toml");
+const MOTOR_REFERENCE_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/reference_rrpr_motor.toml");
 const JOINT_HEADER: &str = "[[joint]]";
 
 // ---------------------------------------------------------------------------
@@ -48,6 +63,17 @@ fn joint_section(text: &str, number: usize) -> std::ops::Range<usize> {
 #[track_caller]
 fn edit_joint(number: usize, from: &str, to: &str) -> String {
     let text = REFERENCE_RRPR_TOML;
+    let range = joint_section(text, number);
+    let section = edit_text(&text[range.clone()], from, to);
+    format!("{}{}{}", &text[..range.start], section, &text[range.end..])
+}
+
+/// The motor reference text (`models/reference_rrpr_motor.toml`) with the
+/// first occurrence of `from` inside the section of joint `number`
+/// (1-based) replaced by `to`.
+#[track_caller]
+fn edit_motor_joint(number: usize, from: &str, to: &str) -> String {
+    let text = REFERENCE_RRPR_MOTOR_TOML;
     let range = joint_section(text, number);
     let section = edit_text(&text[range.clone()], from, to);
     format!("{}{}{}", &text[..range.start], section, &text[range.end..])
@@ -666,6 +692,309 @@ fn set_parameter_accepts_good_values_and_validate_checks_relations() {
     model.set_parameter(Parameter::LengthB, 0, 0.0).unwrap();
     let e = model.validate().unwrap_err();
     assert_invalid_parameter(&e, "joint[1].bearings.l_a + bearings.l_b", 0.0, "at least 1e-3");
+}
+
+// ---------------------------------------------------------------------------
+// Motor drives: the shipped motor reference file, defaults, refusals
+// ---------------------------------------------------------------------------
+
+/// The motor drive line of joint 1 of the motor reference file, as written.
+const MOTOR_1: &str = "drive = { type = \"motor\", k = 1.0e6, h = 0.0, clearance = 0.0, gear_ratio = 100.0, rotor_inertia = 3.0e-4, motor_viscous = 2.0e-4, motor_coulomb = 0.03 }";
+
+#[test]
+fn motor_reference_file_parses_with_every_motor_field() {
+    let model = Model::from_file(MOTOR_REFERENCE_PATH).expect("the motor reference file is valid");
+    model.validate().expect("the motor reference model validates");
+    assert_eq!(model.name, "reference_rrpr_motor");
+    assert_eq!(model.nq(), 4);
+    assert_eq!(model.motor_joints(), [0, 2]);
+    assert_eq!(model.n_coordinates(), 6, "4 joints and 2 rotors");
+    let rotor_1 = Rotor { gear_ratio: 100.0, inertia: 3.0e-4, viscous: 2.0e-4, coulomb: 0.03 };
+    let rotor_3 = Rotor { gear_ratio: 628.3185307179587, inertia: 1.2e-4, viscous: 1.0e-4, coulomb: 0.02 };
+    assert_eq!(model.joints[0].drive, Drive::Motor { stiffness: 1e6, damping: 0.0, clearance: 0.0, rotor: rotor_1 });
+    assert_eq!(model.joints[2].drive, Drive::Motor { stiffness: 1e6, damping: 0.0, clearance: 0.0, rotor: rotor_3 });
+    // The ball screw's ratio is 2π per 10 mm lead, to the last bit.
+    assert_eq!(rotor_3.gear_ratio, 2.0 * std::f64::consts::PI / 0.01);
+    for (i, joint) in model.joints.iter().enumerate() {
+        assert_eq!(joint.drive.is_motor(), i == 0 || i == 2, "joint {}", i + 1);
+        // A motor drive has the spring of a flexible one: its q is a coordinate.
+        assert_eq!(joint.drive.is_flexible(), i == 0 || i == 2, "joint {}", i + 1);
+    }
+    assert_eq!(model.joints[1].drive, Drive::Rigid);
+    assert_eq!(model.joints[3].drive, Drive::Rigid);
+
+    assert_eq!(Model::reference_rrpr_motor(), model);
+    assert_eq!(Model::from_toml_str(REFERENCE_RRPR_MOTOR_TOML).unwrap(), model);
+
+    // Everything but the drives (and the name) is the reference arm: with
+    // flexible drives of the same spring it is `Model::reference_rrpr()`.
+    let mut flexible = model.clone();
+    for joint in &mut flexible.joints {
+        if let Some(s) = joint.drive.spring() {
+            joint.drive = Drive::Flexible { stiffness: s.stiffness, damping: s.damping, clearance: s.clearance };
+        }
+    }
+    flexible.name = "reference_rrpr".into();
+    assert_eq!(flexible, Model::reference_rrpr());
+    assert!(Model::reference_rrpr().motor_joints().is_empty());
+    assert_eq!(Model::reference_rrpr().n_coordinates(), 4);
+}
+
+#[test]
+fn motor_drive_optional_fields_default_to_zero() {
+    let text = edit_motor_joint(1, MOTOR_1, "drive = { type = \"motor\", k = 2.0e5, gear_ratio = 50.0, rotor_inertia = 1e-4 }");
+    let model = Model::from_toml_str(&text).unwrap();
+    let rotor = Rotor { gear_ratio: 50.0, inertia: 1e-4, viscous: 0.0, coulomb: 0.0 };
+    assert_eq!(model.joints[0].drive, Drive::Motor { stiffness: 2e5, damping: 0.0, clearance: 0.0, rotor });
+    // Fields in another order, the optional ones given: read by name.
+    let text = edit_motor_joint(
+        1,
+        MOTOR_1,
+        "drive = { motor_coulomb = 0.5, rotor_inertia = 2.0, clearance = 1e-3, type = \"motor\", motor_viscous = 0.25, gear_ratio = 7.5, h = 3.0, k = 4.0e4 }",
+    );
+    let model = Model::from_toml_str(&text).unwrap();
+    let rotor = Rotor { gear_ratio: 7.5, inertia: 2.0, viscous: 0.25, coulomb: 0.5 };
+    assert_eq!(model.joints[0].drive, Drive::Motor { stiffness: 4e4, damping: 3.0, clearance: 1e-3, rotor });
+    // A motor drive on a rigid joint of the flexible reference file.
+    let text = edit_joint(2, "drive = { type = \"rigid\" }", "drive = { type = \"motor\", k = 1.0e5, gear_ratio = 80.0, rotor_inertia = 5e-5 }");
+    let model = Model::from_toml_str(&text).unwrap();
+    assert_eq!(model.motor_joints(), [1]);
+    assert_eq!(model.n_coordinates(), 5);
+}
+
+#[test]
+fn motor_drive_missing_required_fields_are_syntax_errors() {
+    let e = rejected(&edit_motor_joint(1, "gear_ratio = 100.0, ", ""));
+    assert_syntax(&e, &["missing field `gear_ratio`", "line 40"]);
+    let e = rejected(&edit_motor_joint(3, "rotor_inertia = 1.2e-4, ", ""));
+    assert_syntax(&e, &["missing field `rotor_inertia`", "line 63"]);
+    let e = rejected(&edit_motor_joint(1, "k = 1.0e6, ", ""));
+    assert_syntax(&e, &["missing field `k`", "line 40"]);
+}
+
+#[test]
+fn motor_drive_unknown_key_and_unknown_type_are_syntax_errors() {
+    let e = rejected(&edit_motor_joint(1, "rotor_inertia = 3.0e-4", "rotor_inertial = 3.0e-4"));
+    assert_syntax(&e, &["unknown field `rotor_inertial`", "`rotor_inertia`", "`gear_ratio`", "line 40"]);
+    let e = rejected(&edit_motor_joint(3, "type = \"motor\"", "type = \"motr\""));
+    assert_syntax(&e, &["unknown variant `motr`", "`rigid`", "`flexible`", "`motor`", "line 63"]);
+    // Motor keys on a flexible drive are unknown there, not ignored.
+    let e = rejected(&edit_joint(1, "clearance = 0.0 }", "clearance = 0.0, gear_ratio = 100.0 }"));
+    assert_syntax(&e, &["unknown field `gear_ratio`", "line 32"]);
+    // Not a number.
+    let e = rejected(&edit_motor_joint(1, "gear_ratio = 100.0", "gear_ratio = \"100\""));
+    assert_syntax(&e, &["invalid type: string \"100\", expected f64", "line 40"]);
+}
+
+#[test]
+fn motor_drive_values_are_checked_by_field() {
+    let cases: [(usize, &str, &str, &str, f64, &str); 14] = [
+        (1, "gear_ratio = 100.0", "gear_ratio = 0.0", "joint[1].drive.gear_ratio", 0.0, "positive"),
+        (1, "gear_ratio = 100.0", "gear_ratio = -100.0", "joint[1].drive.gear_ratio", -100.0, "positive"),
+        (3, "gear_ratio = 628.3185307179587", "gear_ratio = nan", "joint[3].drive.gear_ratio", f64::NAN, "finite"),
+        (1, "gear_ratio = 100.0", "gear_ratio = inf", "joint[1].drive.gear_ratio", f64::INFINITY, "finite"),
+        (1, "gear_ratio = 100.0", "gear_ratio = -inf", "joint[1].drive.gear_ratio", f64::NEG_INFINITY, "finite"),
+        (1, "rotor_inertia = 3.0e-4", "rotor_inertia = 0.0", "joint[1].drive.rotor_inertia", 0.0, "positive"),
+        (3, "rotor_inertia = 1.2e-4", "rotor_inertia = -1.2e-4", "joint[3].drive.rotor_inertia", -1.2e-4, "positive"),
+        (1, "rotor_inertia = 3.0e-4", "rotor_inertia = nan", "joint[1].drive.rotor_inertia", f64::NAN, "finite"),
+        (1, "motor_viscous = 2.0e-4", "motor_viscous = -2.0e-4", "joint[1].drive.motor_viscous", -2e-4, "negative"),
+        (3, "motor_viscous = 1.0e-4", "motor_viscous = inf", "joint[3].drive.motor_viscous", f64::INFINITY, "finite"),
+        (1, "motor_coulomb = 0.03", "motor_coulomb = -0.03", "joint[1].drive.motor_coulomb", -0.03, "negative"),
+        (3, "motor_coulomb = 0.02", "motor_coulomb = nan", "joint[3].drive.motor_coulomb", f64::NAN, "finite"),
+        // The spring of a motor drive is checked as a flexible drive's.
+        (1, "k = 1.0e6", "k = 0.0", "joint[1].drive.k", 0.0, "positive"),
+        (3, "clearance = 0.0", "clearance = -1e-3", "joint[3].drive.clearance", -1e-3, "negative"),
+    ];
+    for (joint, from, to, field, value, reason) in cases {
+        let e = rejected(&edit_motor_joint(joint, from, to));
+        assert_invalid_parameter(&e, field, value, reason);
+    }
+    // The exact message, as for the other fields.
+    let e = rejected(&edit_motor_joint(1, "gear_ratio = 100.0", "gear_ratio = 0.0"));
+    assert_eq!(e.to_string(), "`joint[1].drive.gear_ratio` = 0: must be positive and at most 1e6: (0, 1e6]");
+    // Zero viscous and Coulomb friction are admissible (a free rotor).
+    let free = edit_motor_joint(1, "motor_viscous = 2.0e-4, motor_coulomb = 0.03", "motor_viscous = 0.0, motor_coulomb = 0.0");
+    Model::from_toml_str(&free).unwrap().validate().unwrap();
+}
+
+#[test]
+fn motor_drive_ceilings() {
+    let next = |x: f64| f64::from_bits(x.to_bits() + 1);
+    let cases = [
+        ("gear_ratio = 100.0", "gear_ratio", 1e6, "(0, 1e6]"),
+        ("rotor_inertia = 3.0e-4", "rotor_inertia", 1e3, "(0, 1000]"),
+        ("motor_viscous = 2.0e-4", "motor_viscous", 1e6, "[0, 1e6]"),
+        ("motor_coulomb = 0.03", "motor_coulomb", 1e6, "[0, 1e6]"),
+    ];
+    for (from, key, ceiling, range) in cases {
+        let at = edit_motor_joint(1, from, &format!("{key} = {ceiling:?}"));
+        let field = format!("joint[1].drive.{key}");
+        for over in [next(ceiling), 10.0 * ceiling, 1e300] {
+            assert_ceiling(&edit_motor_joint(1, from, &format!("{key} = {over:?}")), &field, over, range, &at);
+        }
+    }
+    // The ranges are those of `Range` and of the parameters.
+    assert_eq!(Parameter::GearRatio.range(), Range::GEAR_RATIO);
+    assert_eq!(Parameter::RotorInertia.range(), Range::ROTOR_INERTIA);
+    assert_eq!(Parameter::MotorViscous.range(), Range::MOTOR_VISCOUS);
+    assert_eq!(Parameter::MotorCoulomb.range(), Range::MOTOR_COULOMB);
+    let shown: Vec<String> = [Range::GEAR_RATIO, Range::ROTOR_INERTIA, Range::MOTOR_VISCOUS, Range::MOTOR_COULOMB]
+        .iter()
+        .map(|r| r.to_string())
+        .collect();
+    assert_eq!(shown, ["(0, 1e6]", "(0, 1000]", "[0, 1e6]", "[0, 1e6]"]);
+    // The smallest positive double is an admissible gear ratio and rotor inertia.
+    for key in ["gear_ratio = 100.0", "rotor_inertia = 3.0e-4"] {
+        let (name, _) = key.split_once(" = ").unwrap();
+        let text = edit_motor_joint(1, key, &format!("{name} = 5e-324"));
+        Model::from_toml_str(&text).unwrap_or_else(|e| panic!("{name} = 5e-324 refused: {e}"));
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Motor parameters: set_parameter, parameter, has_parameter, layout
+// ---------------------------------------------------------------------------
+
+const MOTOR_PARAMETERS: [Parameter; 4] =
+    [Parameter::GearRatio, Parameter::RotorInertia, Parameter::MotorViscous, Parameter::MotorCoulomb];
+
+#[test]
+fn motor_parameters_have_their_names_and_only_the_gear_ratio_is_fixed() {
+    let names: Vec<&str> = MOTOR_PARAMETERS.iter().map(|p| p.name()).collect();
+    assert_eq!(names, ["gear_ratio", "J_m", "b_m", "tau_c"]);
+    for p in Parameter::ALL {
+        assert_eq!(p.is_tunable(), p != Parameter::GearRatio, "{p:?}");
+    }
+    for p in MOTOR_PARAMETERS {
+        assert!(Parameter::ALL.contains(&p), "{p:?} is not in Parameter::ALL");
+    }
+}
+
+#[test]
+fn motor_parameters_exist_on_motor_joints_only() {
+    let motor = Model::reference_rrpr_motor();
+    let expected = [
+        (0, [100.0, 3.0e-4, 2.0e-4, 0.03]),
+        (2, [628.3185307179587, 1.2e-4, 1.0e-4, 0.02]),
+    ];
+    for (joint, values) in expected {
+        for (p, value) in MOTOR_PARAMETERS.into_iter().zip(values) {
+            assert!(motor.has_parameter(p, joint), "{p:?} of joint {}", joint + 1);
+            assert_eq!(motor.parameter(p, joint), Some(value), "{p:?} of joint {}", joint + 1);
+        }
+        // And the spring's parameters, as on a flexible drive.
+        for p in [Parameter::Stiffness, Parameter::Damping, Parameter::Clearance] {
+            assert!(motor.has_parameter(p, joint), "{p:?} of joint {}", joint + 1);
+        }
+    }
+    // Rigid joints 2 and 4, the flexible joints of the reference arm, and a joint beyond the chain: none.
+    let flexible = Model::reference_rrpr();
+    for p in MOTOR_PARAMETERS {
+        for joint in [1, 3, 4] {
+            assert!(!motor.has_parameter(p, joint), "{p:?} of motor-arm joint {}", joint + 1);
+            assert_eq!(motor.parameter(p, joint), None);
+        }
+        for joint in 0..4 {
+            assert!(!flexible.has_parameter(p, joint), "{p:?} of flexible joint {}", joint + 1);
+        }
+    }
+    // set_parameter says so, naming the FMU-style variable; nothing changes.
+    let mut model = flexible.clone();
+    for (p, name) in MOTOR_PARAMETERS.into_iter().zip(["gear_ratio[1]", "J_m[1]", "b_m[1]", "tau_c[1]"]) {
+        let e = model.set_parameter(p, 0, 1.0).unwrap_err();
+        assert_invalid(&e, name, "no such parameter");
+    }
+    assert_eq!(model, flexible);
+    let mut model = motor.clone();
+    let e = model.set_parameter(Parameter::RotorInertia, 1, 1.0).unwrap_err();
+    assert_invalid(&e, "J_m[2]", "no such parameter");
+    let e = model.set_parameter(Parameter::MotorCoulomb, 4, 1.0).unwrap_err();
+    assert_invalid(&e, "tau_c[5]", "the model has 4 joints");
+    assert_eq!(model, motor);
+}
+
+#[test]
+fn motor_parameters_are_set_within_their_ranges_and_refused_outside() {
+    let reference = Model::reference_rrpr_motor();
+    let mut model = reference.clone();
+    // Refused: the value's own range, by the variable's name; nothing stored.
+    let refusals: [(Parameter, usize, f64, &str, &str); 12] = [
+        (Parameter::GearRatio, 0, 0.0, "gear_ratio[1]", "positive"),
+        (Parameter::GearRatio, 2, -5.0, "gear_ratio[3]", "positive"),
+        (Parameter::GearRatio, 0, 1.5e6, "gear_ratio[1]", "at most 1e6"),
+        (Parameter::GearRatio, 0, f64::NAN, "gear_ratio[1]", "finite"),
+        (Parameter::RotorInertia, 0, 0.0, "J_m[1]", "positive"),
+        (Parameter::RotorInertia, 2, 1001.0, "J_m[3]", "at most 1000"),
+        (Parameter::RotorInertia, 0, f64::INFINITY, "J_m[1]", "finite"),
+        (Parameter::MotorViscous, 0, -1e-9, "b_m[1]", "negative"),
+        (Parameter::MotorViscous, 2, 2e6, "b_m[3]", "at most 1e6"),
+        (Parameter::MotorCoulomb, 2, -0.01, "tau_c[3]", "negative"),
+        (Parameter::MotorCoulomb, 0, 1e300, "tau_c[1]", "at most 1e6"),
+        (Parameter::MotorCoulomb, 0, f64::NEG_INFINITY, "tau_c[1]", "finite"),
+    ];
+    for (p, joint, value, field, reason) in refusals {
+        let e = model.set_parameter(p, joint, value).unwrap_err();
+        assert_invalid_parameter(&e, field, value, reason);
+    }
+    assert_eq!(model, reference, "a refused value must not be stored");
+
+    // Accepted, the ceilings and zero friction included; read back exactly.
+    let accepted: [(Parameter, usize, f64); 8] = [
+        (Parameter::GearRatio, 0, 1e6),
+        (Parameter::GearRatio, 2, 50.0),
+        (Parameter::RotorInertia, 0, 1e3),
+        (Parameter::RotorInertia, 2, 5e-324),
+        (Parameter::MotorViscous, 0, 0.0),
+        (Parameter::MotorViscous, 2, 1e6),
+        (Parameter::MotorCoulomb, 0, 0.0),
+        (Parameter::MotorCoulomb, 2, 1e6),
+    ];
+    for (p, joint, value) in accepted {
+        model.set_parameter(p, joint, value).unwrap_or_else(|e| panic!("{p:?}[{}] = {value:e}: {e}", joint + 1));
+        assert_eq!(model.parameter(p, joint), Some(value));
+    }
+    model.validate().expect("every value within its range: no relation involves the motor parameters");
+    let rotor = model.joints[2].drive.rotor().unwrap();
+    assert_eq!(rotor, Rotor { gear_ratio: 50.0, inertia: 5e-324, viscous: 1e6, coulomb: 1e6 });
+    // Only the motor drives changed.
+    assert_eq!(model.joints[1], reference.joints[1]);
+    assert_eq!(model.links, reference.links);
+}
+
+#[test]
+fn changing_motor_parameters_keeps_the_layout_changing_the_drive_kind_does_not() {
+    let motor = Model::reference_rrpr_motor();
+    let mut tuned = motor.clone();
+    for (p, value) in MOTOR_PARAMETERS.into_iter().zip([80.0, 1e-3, 0.5, 0.1]) {
+        tuned.set_parameter(p, 0, value).unwrap();
+        tuned.set_parameter(p, 2, 2.0 * value).unwrap();
+    }
+    tuned.set_parameter(Parameter::Stiffness, 0, 5e5).unwrap();
+    assert_ne!(tuned, motor);
+    // The gear ratio is a parameter slot: the same layout, both ways.
+    assert!(tuned.has_layout_of(&motor) && motor.has_layout_of(&tuned));
+    // A running simulator takes the tuned model (the FMU forbids changing
+    // gear_ratio after initialization; the engine leaves that to its caller).
+    let mut sim = Simulator::new(motor.clone()).unwrap();
+    sim.set_model(tuned.clone()).expect("same layout");
+    assert_eq!(sim.model(), &tuned);
+
+    // Motor drives where the reference arm has flexible ones: another layout.
+    let flexible = Model::reference_rrpr();
+    assert!(!flexible.has_layout_of(&motor) && !motor.has_layout_of(&flexible));
+    let e = Simulator::new(motor.clone()).unwrap().set_model(flexible.clone()).unwrap_err();
+    assert_invalid(&e, "model", "another chain");
+    let e = Simulator::new(flexible).unwrap().set_model(motor.clone()).unwrap_err();
+    assert_invalid(&e, "model", "another chain");
+    // A motor drive added on another joint: another layout.
+    let moved = Model::from_toml_str(&edit_motor_joint(
+        2,
+        "drive = { type = \"rigid\" }",
+        "drive = { type = \"motor\", k = 1.0e6, gear_ratio = 100.0, rotor_inertia = 3.0e-4 }",
+    ))
+    .unwrap();
+    assert_eq!(moved.motor_joints(), [0, 1, 2]);
+    assert!(!moved.has_layout_of(&motor) && !motor.has_layout_of(&moved));
 }
 
 // ---------------------------------------------------------------------------

@@ -6,8 +6,17 @@
 //! and read through `Model::from_toml_with`, the model file's reader of the
 //! URDF returning the mutated text. Each result is either an error with a
 //! non-empty message (the element or field and the reason), or a model that
-//! validates, makes a simulator and runs 2 ms with zero inputs to a finite
-//! state or a `StepError` with a message. Nothing panics.
+//! validates, makes a simulator and runs 2 ms with zero inputs (and 0.5 N·m
+//! on its motor drives) to a finite state or a `StepError` with a message.
+//! Nothing panics. One source, `reference_rrpr_motor`, drives the reference
+//! arm's joints 1 and 3 with motors (one with damping and a clearance).
+//!
+//! Motor drive entries generated field by field (tests/common/motor_tables.rs:
+//! each field omitted, admissible, extreme or garbage; misspelt keys and
+//! types) on the joints j1 to j4 of the reference URDF arm are read exactly
+//! as written or refused, as in a DH file; an accepted one steps like the
+//! rest with a random motor torque (when its rotor's time constants against
+//! the gear are at least 1e-7 s, `motor_tables::resolvable`).
 //!
 //! Two kinds of test: deterministic sweeps and proptest properties. The
 //! sweeps replace every attribute value (and every number of a vector) of
@@ -24,7 +33,12 @@
 //! `STICKSLIP_URDF_FUZZ_CASES=200000 cargo test --release --test urdf_fuzz`.
 
 use proptest::prelude::*;
+use stick_slip_manipulator::stepper::MotorTorques;
 use stick_slip_manipulator::{DriveInputs, Model, ModelError, Simulator, StepError};
+
+#[path = "common/motor_tables.rs"]
+mod motor_tables;
+use motor_tables::{resolvable, table, torque, Table};
 
 /// A URDF with a model file naming it (the model file's `urdf` name is
 /// ignored: the reader returns the mutated text whatever it asks for).
@@ -34,7 +48,7 @@ struct Source {
     toml: &'static str,
 }
 
-const SOURCES: [Source; 6] = [
+const SOURCES: [Source; 7] = [
     Source {
         name: "reference_rrpr",
         urdf: include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf"),
@@ -82,7 +96,27 @@ drive = { type = "flexible", k = 1.0e5 }
 drive = { type = "flexible", k = 1.0e4, h = 2.0 }
 "#,
     },
+    Source {
+        name: "reference_rrpr_motor",
+        urdf: include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf"),
+        toml: MOTOR_TOML,
+    },
 ];
+
+/// The reference URDF arm with motors on j1 and j3 (the rotors of
+/// models/reference_rrpr_motor.toml; j3's gear with damping and a clearance).
+const MOTOR_TOML: &str = r#"urdf = "reference_rrpr.urdf"
+base_link = "base"
+tip_link = "gripper_tip"
+[joints.j1]
+drive = { type = "motor", k = 1.0e6, gear_ratio = 100.0, rotor_inertia = 3.0e-4, motor_viscous = 2.0e-4, motor_coulomb = 0.03 }
+friction = { mu_k = 0.2, mu_s = 0.2 }
+bearings = { reaction_point = [0.0, -0.54, 0.0], l_a = 0.06, l_b = 0.06, d_a = 0.1, d_b = 0.1, d_c = 0.1 }
+[joints.j3]
+drive = { type = "motor", k = 1.0e6, h = 100.0, clearance = 1e-5, gear_ratio = 628.3185307179587, rotor_inertia = 1.2e-4, motor_viscous = 1.0e-4, motor_coulomb = 0.02 }
+friction = { mu_k = 0.2, mu_s = 0.2 }
+slider = { centre = [0.0, 0.0, -0.7], a = 0.2, b = 0.07, c = 0.07 }
+"#;
 
 /// What a mutation puts in place of an attribute value or of one of its numbers.
 const VALUES: [&str; 20] = [
@@ -123,8 +157,13 @@ fn assert_model_error_says_something(e: &ModelError, what: &str) {
     assert!(parts.iter().all(|p| !p.trim().is_empty()), "{what}: an error with an empty part: {e:?}");
 }
 
+/// The motor torque of the steps (N·m on every joint; joints without a
+/// motor drive ignore it).
+const TAU: f64 = 0.5;
+
 /// Reads `urdf` through `source`'s model file; an accepted model validates
-/// and runs 2 ms with zero inputs to a finite state or a step error.
+/// and runs 2 ms with zero drive inputs (and `TAU` on its motors) to a
+/// finite state or a step error.
 fn loads_or_refuses(source: &Source, urdf: &str, what: &str) -> Tally {
     let model = match Model::from_toml_with(source.toml, &|_| Ok(urdf.to_string())) {
         Err(e) => {
@@ -133,6 +172,12 @@ fn loads_or_refuses(source: &Source, urdf: &str, what: &str) -> Tally {
         }
         Ok(model) => model,
     };
+    steps_or_fails(model, TAU, what)
+}
+
+/// A loaded model validates and runs 2 ms with zero drive inputs and the
+/// motor torque `tau` to a finite state or a step error.
+fn steps_or_fails(model: Model, tau: f64, what: &str) -> Tally {
     if let Err(e) = model.validate() {
         panic!("{what}: an accepted model does not validate: {e}");
     }
@@ -140,6 +185,9 @@ fn loads_or_refuses(source: &Source, urdf: &str, what: &str) -> Tally {
     let mut sim = Simulator::new(model).unwrap_or_else(|e| panic!("{what}: a valid model makes no simulator: {e}"));
     let zero = vec![0.0; n];
     let inputs = DriveInputs { q_star: &zero, qd_star: &zero, qdd_star: &zero };
+    let tau = vec![tau; n];
+    sim.set_motor_torques(&MotorTorques { tau_m: &tau, tau_m_rate: &zero, tau_m_accel: &zero })
+        .unwrap_or_else(|e| panic!("{what}: a torque within its range is refused: {e}"));
     let step_error = |e: StepError| {
         assert!(!e.to_string().trim().is_empty(), "{what}: a step error without a message: {e:?}");
         eprintln!("{what}: {e}");
@@ -412,6 +460,60 @@ proptest! {
         }
         let text = format!("{}{insert}{}", &s.urdf[..i], &s.urdf[i..]);
         loads_or_refuses(s, &text, &format!("{}: `{insert}` inserted at {i}", s.name));
+    }
+}
+
+/// The motor source's model file with `table` as the drive of the reference
+/// arm's joint j1 to j4 (replacing the drive of j1 and j3, an entry of its
+/// own for j2 and j4).
+fn with_motor_table(table: &Table) -> String {
+    let name = format!("j{}", table.joint);
+    let header = format!("[joints.{name}]\n");
+    match MOTOR_TOML.find(&header) {
+        Some(at) => {
+            let line_start = at + header.len();
+            let line_end = line_start + MOTOR_TOML[line_start..].find('\n').unwrap();
+            assert!(MOTOR_TOML[line_start..].starts_with("drive = "));
+            format!("{}{}{}", &MOTOR_TOML[..line_start], table.toml(), &MOTOR_TOML[line_end..])
+        }
+        None => format!("{MOTOR_TOML}{header}{}\n", table.toml()),
+    }
+}
+
+proptest! {
+    // A fixed seed unless STICKSLIP_MOTOR_FUZZ_SEED says otherwise (see `motor_tables::seed`).
+    #![proptest_config(ProptestConfig { cases: cases() / 2, failure_persistence: None, rng_seed: motor_tables::seed(), ..ProptestConfig::default() })]
+
+    #[test]
+    fn generated_motor_entries_are_read_exactly_or_refused(table in table(), tau in torque()) {
+        let urdf = SOURCES[6].urdf;
+        let toml = with_motor_table(&table);
+        let what = format!("motor entry on j{}: {}", table.joint, table.toml());
+        match (Model::from_toml_with(&toml, &|_| Ok(urdf.to_string())), table.expected()) {
+            (Ok(model), Some(drive)) => {
+                prop_assert_eq!(model.joints[table.joint - 1].drive, drive, "{}", what);
+                if resolvable(&drive) {
+                    steps_or_fails(model, tau, &what);
+                }
+            }
+            (Err(e), None) => assert_model_error_says_something(&e, &what),
+            (Ok(model), None) => prop_assert!(false, "{what}: accepted as {:?}", model.joints[table.joint - 1].drive),
+            (Err(e), Some(drive)) => prop_assert!(false, "{what}: refused ({drive:?}): {e}"),
+        }
+    }
+}
+
+#[test]
+fn the_motor_source_has_motors_on_j1_and_j3_and_the_table_helper_places_entries() {
+    let m = Model::from_toml_with(MOTOR_TOML, &|_| Ok(SOURCES[6].urdf.to_string())).unwrap();
+    assert_eq!(m.motor_joints(), [0, 2]);
+    assert_eq!(m.joints[0].drive, Model::reference_rrpr_motor().joints[0].drive);
+    assert!(m.joints[2].drive.spring().is_some_and(|s| s.clearance == 1e-5 && s.damping == 100.0));
+    for joint in 1..=4 {
+        let table = Table { fields: vec![motor_tables::Field::Omitted; 7], kind: "motor", extra_key: None, joint };
+        let text = with_motor_table(&table);
+        assert_eq!(text.matches("[joints.").count(), if joint % 2 == 1 { 2 } else { 3 });
+        assert!(text.contains(&format!("[joints.j{joint}]\ndrive = {{ type = \"motor\" }}")), "{text}");
     }
 }
 

@@ -9,12 +9,21 @@
 //!
 //! The URDF reader's own refusals are tested in tests/urdf_reader.rs; here
 //! only that they reach the model file's caller with the URDF's file name.
+//!
+//! Motor drives in `[joints.<name>]` (`drive = { type = "motor", … }`): on
+//! the KUKA iiwa and the reference arm they give `Drive::Motor` with every
+//! field and the defaults; their refusals are those of a DH file: syntax
+//! errors (missing `gear_ratio`/`rotor_inertia`, unknown key, unknown type)
+//! name the key and the model file's line, range refusals name the field by
+//! the joint's place in the chain, `joint[i].drive.<key>` (not by its URDF
+//! name), a massless chain beyond names `joint[i] (`<name>`).drive`.
 
 use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
 use stick_slip_manipulator::algorithms::rnea::{joint_reactions, rnea};
 use stick_slip_manipulator::math::{Mat3, Vec3};
-use stick_slip_manipulator::model::{ContactGeometry, Drive};
-use stick_slip_manipulator::{Data, Model, ModelError};
+use stick_slip_manipulator::model::{ContactGeometry, Drive, Rotor};
+use stick_slip_manipulator::stepper::MotorTorques;
+use stick_slip_manipulator::{Data, DriveInputs, Model, ModelError, Simulator};
 
 const REFERENCE_TOML: &str = include_str!("../models/urdf/reference_rrpr/reference_rrpr.toml");
 const REFERENCE_URDF: &str = include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf");
@@ -447,6 +456,179 @@ fn joint_names_are_the_urdf_names_in_chain_order() {
     let flexible: Vec<bool> = iiwa.joints.iter().map(|j| j.drive.is_flexible()).collect();
     assert_eq!(flexible[..4], [true, true, false, true]);
     assert!(Model::reference_rrpr().joint_names.iter().all(Option::is_none), "DH joints have no names");
+}
+
+// ---------------------------------------------------------------------------
+// Motor drives in [joints.<name>]
+// ---------------------------------------------------------------------------
+
+const KUKA_TOML: &str = include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.toml");
+const KUKA_URDF: &str = include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.urdf");
+/// The drive line of lbr_iiwa_joint_2 in kuka_iiwa.toml (line 83).
+const KUKA_J2_DRIVE: &str = r#"drive = { type = "flexible", k = 7.8e4, h = 31.0, clearance = 0.0 }"#;
+
+fn kuka(toml: &str) -> Result<Model, ModelError> {
+    load(toml, "kuka_iiwa.urdf", KUKA_URDF)
+}
+
+/// kuka_iiwa.toml with joint 2's drive line replaced by `drive`.
+fn kuka_j2(drive: &str) -> String {
+    edit(KUKA_TOML, KUKA_J2_DRIVE, drive)
+}
+
+/// `e` is `InvalidParameter` for exactly `want_field` with `value`, its
+/// reason contains `reason_has`, and the message shows the field.
+#[track_caller]
+fn assert_invalid_parameter(e: &ModelError, want_field: &str, want_value: f64, reason_has: &str) {
+    match e {
+        ModelError::InvalidParameter { field, value, reason } => {
+            assert_eq!(field, want_field, "wrong field in: {e}");
+            assert!(value.to_bits() == want_value.to_bits() || (value.is_nan() && want_value.is_nan()), "{value} in: {e}");
+            assert!(reason.contains(reason_has), "the reason does not say `{reason_has}`: {e}");
+            assert!(e.to_string().contains(want_field), "the message does not name `{want_field}`: {e}");
+        }
+        other => panic!("expected InvalidParameter for `{want_field}`, got {other:?} ({other})"),
+    }
+}
+
+#[test]
+fn motor_drive_entry_on_a_kuka_iiwa_joint_is_a_motor_drive() {
+    let plain = Model::from_file(format!("{MODELS}/kuka_iiwa/kuka_iiwa.toml")).unwrap();
+    assert_eq!(kuka(KUKA_TOML).unwrap().joints, plain.joints, "the test reader reads the shipped file");
+    let toml = kuka_j2(
+        r#"drive = { type = "motor", k = 7.8e4, h = 31.0, clearance = 1e-4, gear_ratio = 100.0, rotor_inertia = 6.0e-5, motor_viscous = 1e-4, motor_coulomb = 0.05 }"#,
+    );
+    let m = kuka(&toml).unwrap();
+    let rotor = Rotor { gear_ratio: 100.0, inertia: 6.0e-5, viscous: 1e-4, coulomb: 0.05 };
+    assert_eq!(m.joints[1].drive, Drive::Motor { stiffness: 7.8e4, damping: 31.0, clearance: 1e-4, rotor });
+    assert_eq!(m.motor_joints(), [1]);
+    assert_eq!(m.n_coordinates(), 8);
+    // Friction and geometry of the entry kept; every other joint as shipped.
+    assert_eq!(m.joints[1].friction, plain.joints[1].friction);
+    for i in (0..7).filter(|&i| i != 1) {
+        assert_eq!(m.joints[i], plain.joints[i], "joint {}", i + 1);
+    }
+    assert_eq!(m.links, plain.links);
+
+    // A new entry on a joint the shipped file leaves rigid, only the
+    // required fields: the defaults are zero.
+    let toml = format!(
+        "{toml}\n[joints.lbr_iiwa_joint_3]\ndrive = {{ type = \"motor\", k = 2.0e4, gear_ratio = 120.0, rotor_inertia = 3.0e-5 }}\n"
+    );
+    let m = kuka(&toml).unwrap();
+    let rotor = Rotor { gear_ratio: 120.0, inertia: 3.0e-5, viscous: 0.0, coulomb: 0.0 };
+    assert_eq!(m.joints[2].drive, Drive::Motor { stiffness: 2.0e4, damping: 0.0, clearance: 0.0, rotor });
+    assert!(m.joints[2].friction.is_none());
+    assert_eq!(m.motor_joints(), [1, 2]);
+}
+
+#[test]
+fn reference_urdf_arm_with_motor_entries_has_the_drives_of_the_dh_motor_file_and_steps() {
+    let dh = Model::reference_rrpr_motor();
+    let drive = |j: usize| match dh.joints[j].drive {
+        Drive::Motor { stiffness, damping, clearance, rotor } => format!(
+            "drive = {{ type = \"motor\", k = {stiffness:?}, h = {damping:?}, clearance = {clearance:?}, gear_ratio = {:?}, \
+             rotor_inertia = {:?}, motor_viscous = {:?}, motor_coulomb = {:?} }}",
+            rotor.gear_ratio, rotor.inertia, rotor.viscous, rotor.coulomb
+        ),
+        other => panic!("{other:?}"),
+    };
+    let toml = with_entry("j1", &format!("{}\n{FRICTION}\n{J1_BEARINGS}", drive(0)));
+    let toml = {
+        let header = "[joints.j3]";
+        let start = toml.find(header).unwrap();
+        let rest = &toml[start + header.len()..];
+        let end = rest.find("\n\n").map_or(toml.len(), |e| start + header.len() + e);
+        format!("{}{header}\n{}\n{FRICTION}\n{J3_SLIDER}\n{}", &toml[..start], drive(2), &toml[end..])
+    };
+    let m = reference(&toml).unwrap();
+    assert_eq!(m.motor_joints(), [0, 2]);
+    assert_eq!(m.joints[0].drive, dh.joints[0].drive);
+    assert_eq!(m.joints[2].drive, dh.joints[2].drive);
+    // It steps: 5 ms with 0.5 N·m on joint 1's motor, to a finite state in
+    // which that rotor turned forwards.
+    let mut sim = Simulator::new(m).unwrap();
+    let zero = [0.0; 4];
+    let at_rest = DriveInputs { q_star: &zero, qd_star: &zero, qdd_star: &zero };
+    sim.set_motor_torques(&MotorTorques { tau_m: &[0.5, 0.0, 0.0, 0.0], tau_m_rate: &zero, tau_m_accel: &zero }).unwrap();
+    sim.initialize(0.0, &at_rest, None).unwrap();
+    for _ in 0..5 {
+        sim.advance(&at_rest, 1e-3).unwrap();
+        sim.state().check_finite().unwrap();
+    }
+    assert!(sim.state().omega_m(0) > 0.0 && sim.state().theta_m(0) > 0.0, "{:?}", sim.state());
+}
+
+#[test]
+fn motor_drive_entry_syntax_errors_name_the_key_and_the_line() {
+    let cases = [
+        (r#"drive = { type = "motor", k = 7.8e4, rotor_inertia = 1e-4 }"#, "missing field `gear_ratio`"),
+        (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 100.0 }"#, "missing field `rotor_inertia`"),
+        (r#"drive = { type = "motor", gear_ratio = 100.0, rotor_inertia = 1e-4 }"#, "missing field `k`"),
+        (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 100.0, rotor_inertial = 1e-4 }"#, "unknown field `rotor_inertial`"),
+        (r#"drive = { type = "motr", k = 7.8e4, gear_ratio = 100.0, rotor_inertia = 1e-4 }"#, "unknown variant `motr`"),
+        (r#"drive = { type = "flexible", k = 7.8e4, gear_ratio = 100.0 }"#, "unknown field `gear_ratio`"),
+        (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = true, rotor_inertia = 1e-4 }"#, "invalid type: boolean `true`, expected f64"),
+    ];
+    for (drive, says) in cases {
+        let e = rejected(kuka(&kuka_j2(drive)));
+        assert_syntax(&e, &[says, "line 83"]);
+    }
+    let e = rejected(kuka(&kuka_j2(r#"drive = { type = "motr", k = 7.8e4 }"#)));
+    assert_syntax(&e, &["`rigid`", "`flexible`", "`motor`"]);
+}
+
+#[test]
+fn motor_drive_entry_values_are_refused_by_the_joints_place_in_the_chain() {
+    let with = |key_value: &str| {
+        kuka_j2(&format!(
+            "drive = {{ type = \"motor\", k = 7.8e4, gear_ratio = 100.0, rotor_inertia = 1e-4, motor_viscous = 1e-4, motor_coulomb = 0.05, {key_value} }}"
+        ))
+    };
+    // A key given twice is a TOML error: the cases replace it instead.
+    let cases: [(&str, &str, &str, f64, &str); 13] = [
+        ("gear_ratio = 100.0", "gear_ratio = 0.0", "gear_ratio", 0.0, "positive"),
+        ("gear_ratio = 100.0", "gear_ratio = -3.0", "gear_ratio", -3.0, "positive"),
+        ("gear_ratio = 100.0", "gear_ratio = nan", "gear_ratio", f64::NAN, "finite"),
+        ("gear_ratio = 100.0", "gear_ratio = inf", "gear_ratio", f64::INFINITY, "finite"),
+        ("gear_ratio = 100.0", "gear_ratio = 1.0e7", "gear_ratio", 1e7, "(0, 1e6]"),
+        ("rotor_inertia = 1e-4", "rotor_inertia = 0.0", "rotor_inertia", 0.0, "positive"),
+        ("rotor_inertia = 1e-4", "rotor_inertia = 2000.0", "rotor_inertia", 2000.0, "(0, 1000]"),
+        ("rotor_inertia = 1e-4", "rotor_inertia = -inf", "rotor_inertia", f64::NEG_INFINITY, "finite"),
+        ("motor_viscous = 1e-4", "motor_viscous = -1e-4", "motor_viscous", -1e-4, "negative"),
+        ("motor_viscous = 1e-4", "motor_viscous = 1.0e7", "motor_viscous", 1e7, "[0, 1e6]"),
+        ("motor_coulomb = 0.05", "motor_coulomb = -0.05", "motor_coulomb", -0.05, "negative"),
+        ("motor_coulomb = 0.05", "motor_coulomb = 1.0e7", "motor_coulomb", 1e7, "[0, 1e6]"),
+        ("motor_coulomb = 0.05", "motor_coulomb = nan", "motor_coulomb", f64::NAN, "finite"),
+    ];
+    for (from, to, key, value, reason) in cases {
+        let toml = with("h = 31.0").replacen(from, to, 1);
+        assert!(toml.contains(to), "{to}");
+        let e = rejected(kuka(&toml));
+        // lbr_iiwa_joint_2 is the chain's joint 2; the field does not carry
+        // the URDF name (the range check is the model's, after the chain is built).
+        assert_invalid_parameter(&e, &format!("joint[2].drive.{key}"), value, reason);
+    }
+    // The same on a joint without an entry in the shipped file.
+    let toml = format!("{KUKA_TOML}\n[joints.lbr_iiwa_joint_6]\ndrive = {{ type = \"motor\", k = 1.0e4, gear_ratio = 0.0, rotor_inertia = 1e-5 }}\n");
+    let e = rejected(kuka(&toml));
+    assert_invalid_parameter(&e, "joint[6].drive.gear_ratio", 0.0, "positive");
+    // At the ceilings: accepted.
+    let toml = kuka_j2(
+        r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 1.0e6, rotor_inertia = 1.0e3, motor_viscous = 1.0e6, motor_coulomb = 1.0e6 }"#,
+    );
+    kuka(&toml).unwrap();
+}
+
+#[test]
+fn motor_drive_whose_chain_beyond_has_no_mass_is_refused_naming_the_urdf_joint() {
+    let motor = r#"drive = { type = "motor", k = 1.0e5, gear_ratio = 50.0, rotor_inertia = 1e-4 }"#;
+    let toml = format!("urdf = \"m.urdf\"\n[joints.b]\n{motor}\n");
+    let e = rejected(load(&toml, "m.urdf", MASSLESS_TIP_URDF));
+    assert_invalid(&e, "joint[2] (`b`).drive", &["needs mass in the chain beyond the joint"]);
+    let toml = format!("urdf = \"m.urdf\"\n[joints.a]\n{motor}\n");
+    let m = load(&toml, "m.urdf", MASSLESS_TIP_URDF).unwrap();
+    assert_eq!(m.motor_joints(), [0]);
 }
 
 // ---------------------------------------------------------------------------

@@ -362,3 +362,421 @@ fn do_step_allocates_nothing_and_an_instance_is_small() {
     assert_eq!(allocations, 0, "fmi2SetReal + fmi2DoStep allocated {allocations} times in 199 steps");
     unsafe { fmi2FreeInstance(c) };
 }
+
+/// The FMU of the reference arm with motor drives on joints 1 and 3
+/// (`REFERENCE_RRPR_MOTOR_TOML`): motor torque inputs and their derivatives,
+/// the fixed gear ratio, refused values that store nothing, FMU states that
+/// carry the motor torques and the rotors, and the variable lists of both
+/// reference models.
+mod motor {
+    use super::super::description::{Causality, Type, Variability};
+    use super::super::snapshot::Snapshot;
+    use super::*;
+    use crate::model::REFERENCE_RRPR_MOTOR_TOML;
+
+    const WARNING: fmi2Status = fmi2Status_fmi2Warning;
+
+    fn motor_instance() -> (fmi2Component, Log) {
+        let (logger, log) = Logger::memory(true);
+        let instance = Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor reference model");
+        (into_component(instance), log)
+    }
+
+    fn vr(name: &str) -> fmi2ValueReference {
+        let model = Model::reference_rrpr_motor();
+        variables(&model).iter().find(|v| v.name == name).unwrap_or_else(|| panic!("no variable {name}")).value_reference
+    }
+
+    fn set(c: fmi2Component, names: &[&str], values: &[f64]) -> fmi2Status {
+        let vrs: Vec<_> = names.iter().map(|n| vr(n)).collect();
+        unsafe { fmi2SetReal(c, vrs.as_ptr(), vrs.len(), values.as_ptr()) }
+    }
+
+    fn get(c: fmi2Component, names: &[&str]) -> Vec<f64> {
+        let vrs: Vec<_> = names.iter().map(|n| vr(n)).collect();
+        let mut values = vec![f64::NAN; vrs.len()];
+        assert_eq!(unsafe { fmi2GetReal(c, vrs.as_ptr(), vrs.len(), values.as_mut_ptr()) }, OK);
+        values
+    }
+
+    fn derivatives(c: fmi2Component, names: &[&str], orders: &[fmi2Integer], values: &[f64]) -> fmi2Status {
+        let vrs: Vec<_> = names.iter().map(|n| vr(n)).collect();
+        unsafe { fmi2SetRealInputDerivatives(c, vrs.as_ptr(), vrs.len(), orders.as_ptr(), values.as_ptr()) }
+    }
+
+    /// What the instance holds, through its own FMU state: the motor torques
+    /// τ_m, τ̇_m, τ̈_m it will step with, per joint.
+    fn stored_torques(c: fmi2Component) -> [Vec<f64>; 3] {
+        let mut torques = None;
+        let all = States::of(&[
+            LifeCycle::Instantiated,
+            LifeCycle::InitializationMode,
+            LifeCycle::StepComplete,
+            LifeCycle::StepFailed,
+        ]);
+        let status = unsafe {
+            with_instance(c, "stored_torques", all, |instance| {
+                let Snapshot { torques: t, .. } = instance.check_snapshot(&instance.snapshot())?;
+                torques = Some(t);
+                Ok(Status::Ok)
+            })
+        };
+        assert_eq!(status, OK);
+        torques.expect("the snapshot decodes")
+    }
+
+    /// Every Real and Boolean variable of the motor model, as raw bits.
+    fn all_values(c: fmi2Component) -> Vec<u64> {
+        let model = Model::reference_rrpr_motor();
+        let vars = variables(&model);
+        let reals: Vec<_> = vars.iter().filter(|v| matches!(v.ty, Type::Real { .. })).map(|v| v.value_reference).collect();
+        let bools: Vec<_> = vars.iter().filter(|v| matches!(v.ty, Type::Boolean { .. })).map(|v| v.value_reference).collect();
+        let mut r = vec![0.0; reals.len()];
+        let mut b = vec![0; bools.len()];
+        unsafe {
+            assert_eq!(fmi2GetReal(c, reals.as_ptr(), reals.len(), r.as_mut_ptr()), OK);
+            assert_eq!(fmi2GetBoolean(c, bools.as_ptr(), bools.len(), b.as_mut_ptr()), OK);
+        }
+        r.iter().map(|x| x.to_bits()).chain(b.iter().map(|x| *x as u64)).collect()
+    }
+
+    /// `n` steps of 1 ms from `t` with the torques the instance holds (none
+    /// set here): every variable after every step, as raw bits.
+    fn run(c: fmi2Component, t: f64, n: usize) -> Vec<u64> {
+        let mut bits = Vec::new();
+        for k in 0..n {
+            assert_eq!(unsafe { fmi2DoStep(c, t + k as f64 * 1e-3, 1e-3, 0) }, OK);
+            bits.extend(all_values(c));
+        }
+        bits
+    }
+
+    // τ_m on both motors moves their rotors forwards: after 20 steps of 1 ms
+    // every Real output is finite, the rotor of joint 1 (0.5 N·m against
+    // τ_c = 0.03 N·m) turns and slips, its kinetic energy and the motors'
+    // work are positive; tau_m reads back what was set.
+    #[test]
+    fn tau_m_turns_the_rotors_and_every_output_stays_finite() {
+        let (c, _) = motor_instance();
+        initialize(c);
+        assert_eq!(get(c, &["theta_m[1]", "omega_m[1]", "theta_m[3]"]), [0.0, 0.0, 0.0]);
+        assert_eq!(set(c, &["tau_m[1]", "tau_m[3]"], &[0.5, 0.3]), OK);
+        assert_eq!(get(c, &["tau_m[1]", "tau_m[3]"]), [0.5, 0.3]);
+        for k in 0..20 {
+            assert_eq!(unsafe { fmi2DoStep(c, k as f64 * 1e-3, 1e-3, 0) }, OK);
+        }
+        let model = Model::reference_rrpr_motor();
+        for v in variables(&model).iter().filter(|v| v.causality == Causality::Output && matches!(v.ty, Type::Real { .. })) {
+            let x = get(c, &[v.name.as_str()])[0];
+            assert!(x.is_finite(), "{} = {x}", v.name);
+        }
+        let [theta, omega, e_rotor, w_drive] = get(c, &["theta_m[1]", "omega_m[1]", "E_rotor", "W_drive"])[..] else { unreachable!() };
+        assert!(theta > 0.0 && omega > 0.0, "theta_m[1] = {theta}, omega_m[1] = {omega}");
+        assert!(e_rotor > 0.0 && w_drive > 0.0, "E_rotor = {e_rotor}, W_drive = {w_drive}");
+        let mut stuck = [9];
+        unsafe { assert_eq!(fmi2GetBoolean(c, [vr("stick_m[1]")].as_ptr(), 1, stuck.as_mut_ptr()), OK) };
+        assert_eq!(stuck, [0], "the rotor of joint 1 slips under 0.5 N·m");
+        unsafe { fmi2FreeInstance(c) };
+    }
+
+    // gear_ratio[i] is a fixed parameter: set before fmi2ExitInitializationMode
+    // it is used; after it, fmi2SetReal refuses it (naming it, `fixed
+    // parameter`) and nothing changes, while J_m, b_m, tau_c stay tunable
+    // (within their ranges).
+    #[test]
+    fn gear_ratio_is_fixed_after_initialization_and_the_rotor_parameters_are_tunable() {
+        let (c, log) = motor_instance();
+        assert_eq!(set(c, &["gear_ratio[1]"], &[50.0]), OK, "settable once instantiated");
+        unsafe {
+            assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), OK);
+            assert_eq!(fmi2EnterInitializationMode(c), OK);
+        }
+        assert_eq!(get(c, &["gear_ratio[1]", "gear_ratio[3]"]), [50.0, 628.3185307179587]);
+        assert_eq!(set(c, &["gear_ratio[3]"], &[500.0]), OK, "settable in initialization mode");
+        unsafe { assert_eq!(fmi2ExitInitializationMode(c), OK) };
+        assert_eq!(get(c, &["gear_ratio[1]", "gear_ratio[3]"]), [50.0, 500.0]);
+
+        assert_eq!(set(c, &["gear_ratio[1]"], &[80.0]), ERROR);
+        let (status, _, message) = last_message(&log);
+        assert_eq!(status, Status::Error);
+        assert!(message.contains("`gear_ratio[1]` is a fixed parameter"), "{message}");
+        // With a tunable one in the same call: refused as a whole.
+        assert_eq!(set(c, &["J_m[1]", "gear_ratio[3]"], &[1e-3, 600.0]), ERROR);
+        assert_eq!(get(c, &["gear_ratio[1]", "gear_ratio[3]", "J_m[1]"]), [50.0, 500.0, 3e-4]);
+
+        assert_eq!(set(c, &["J_m[1]", "b_m[3]", "tau_c[1]"], &[1e-3, 0.0, 0.05]), OK);
+        assert_eq!(get(c, &["J_m[1]", "b_m[3]", "tau_c[1]"]), [1e-3, 0.0, 0.05]);
+        assert_eq!(set(c, &["J_m[1]"], &[0.0]), ERROR);
+        assert!(last_message(&log).2.contains("J_m[1]"), "{:?}", last_message(&log));
+        assert_eq!(set(c, &["tau_c[3]"], &[-1.0]), ERROR);
+        assert_eq!(get(c, &["J_m[1]", "tau_c[3]"]), [1e-3, 0.02]);
+        assert_eq!(unsafe { fmi2DoStep(c, 0.0, 1e-3, 0) }, OK);
+        unsafe { fmi2FreeInstance(c) };
+    }
+
+    // fmi2SetRealInputDerivatives on tau_m: order 1 sets τ̇_m, order 2 τ̈_m
+    // (read from the instance's own FMU state), and the step uses them; a
+    // non-zero order 3 is ignored with fmi2Warning (a zero one is fine); a
+    // derivative outside its range (|τ̇_m| ≤ 1e9, |τ̈_m| ≤ 1e12) or NaN is
+    // refused and nothing of the call is stored.
+    #[test]
+    fn tau_m_derivatives_of_order_1_and_2_are_taken_and_order_3_warns() {
+        let (c, log) = motor_instance();
+        initialize(c);
+        let (a, _) = motor_instance();
+        initialize(a);
+        assert_eq!(derivatives(c, &["tau_m[1]", "tau_m[1]", "tau_m[3]"], &[1, 2, 1], &[200.0, 1e4, -1.0]), OK);
+        let [tau, rate, accel] = stored_torques(c);
+        assert_eq!((tau[0], rate[0], accel[0]), (0.0, 200.0, 1e4));
+        assert_eq!((tau[2], rate[2], accel[2]), (0.0, -1.0, 0.0));
+        assert_eq!(stored_torques(a), [vec![0.0; 4], vec![0.0; 4], vec![0.0; 4]]);
+
+        // Order 3: a zero is accepted silently, a non-zero one warns and changes nothing.
+        assert_eq!(derivatives(c, &["tau_m[3]"], &[3], &[0.0]), OK);
+        assert_eq!(derivatives(c, &["tau_m[1]"], &[3], &[5.0]), WARNING);
+        let (status, category, message) = last_message(&log);
+        assert_eq!((status, category), (Status::Warning, "logStatusWarning"));
+        assert!(message.contains("order 3 of `tau_m[1]`"), "{message}");
+        assert_eq!(stored_torques(c)[1..], [vec![200.0, 0.0, -1.0, 0.0], vec![1e4, 0.0, 0.0, 0.0]]);
+
+        // Out of range, NaN: refused, the valid entries of the call not stored either.
+        assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[1]"], &[1, 2], &[7.0, 2e12]), ERROR);
+        let message = last_message(&log).2;
+        assert!(message.contains("`tau_m[1]`") && message.contains("tau_m''") && message.contains("[-1e12, 1e12]"), "{message}");
+        assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[1]"], &[1, 1], &[7.0, -2e9]), ERROR);
+        assert!(last_message(&log).2.contains("[-1e9, 1e9]"), "{:?}", last_message(&log));
+        assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[3]"], &[1, 2], &[7.0, f64::NAN]), ERROR);
+        assert!(last_message(&log).2.contains("not a finite number"), "{:?}", last_message(&log));
+        assert_eq!(stored_torques(c)[1..], [vec![200.0, 0.0, -1.0, 0.0], vec![1e4, 0.0, 0.0, 0.0]]);
+        // The bounds themselves are admissible.
+        assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[3]"], &[1, 2], &[-1e9, 1e12]), OK);
+        assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[3]"], &[1, 2], &[-1.0, 0.0]), OK);
+
+        // The step runs with the derivatives: τ_m of joint 1 passes τ_c =
+        // 0.03 N·m at about 0.14 ms, and its rotor turns, where the instance
+        // without them stays at rest.
+        unsafe {
+            assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 0), OK);
+            assert_eq!(fmi2DoStep(a, 0.0, 1e-3, 0), OK);
+        }
+        assert!(get(c, &["omega_m[1]"])[0] > 0.0);
+        assert_eq!(get(a, &["theta_m[1]", "omega_m[1]"]), [0.0, 0.0]);
+        unsafe {
+            fmi2FreeInstance(c);
+            fmi2FreeInstance(a);
+        }
+    }
+
+    // fmi2SetReal of tau_m outside [-1e6, 1e6] N·m, or NaN or infinite, is
+    // refused naming the variable, and nothing of the call is stored (the
+    // valid value before it neither); the bounds are admissible.
+    #[test]
+    fn out_of_range_or_non_finite_tau_m_is_refused_and_nothing_is_stored() {
+        let (c, log) = motor_instance();
+        initialize(c);
+        assert_eq!(set(c, &["tau_m[1]"], &[0.25]), OK);
+        let above = f64::from_bits(1e6f64.to_bits() + 1);
+        for (value, says) in [(above, "outside its range [-1e6, 1e6]"), (-2e6, "outside its range"), (f64::NAN, "not a finite number"), (f64::INFINITY, "not a finite number")] {
+            assert_eq!(set(c, &["tau_m[1]", "tau_m[3]"], &[0.5, value]), ERROR, "{value}");
+            let message = last_message(&log).2;
+            assert!(message.contains("`tau_m[3]`") && message.contains(says), "{message}");
+            assert_eq!(get(c, &["tau_m[1]", "tau_m[3]"]), [0.25, 0.0]);
+            assert_eq!(stored_torques(c)[0], [0.25, 0.0, 0.0, 0.0]);
+        }
+        assert_eq!(set(c, &["tau_m[1]", "tau_m[3]"], &[1e6, -1e6]), OK);
+        assert_eq!(get(c, &["tau_m[1]", "tau_m[3]"]), [1e6, -1e6]);
+        unsafe { fmi2FreeInstance(c) };
+    }
+
+    // An FMU state of the motor arm, taken mid-motion, continues bit for bit
+    // (every variable, every step) in the same instance and, serialized, in
+    // a fresh one, with the motor torques and their derivatives it holds
+    // (set once before the state is taken, changed after it).
+    #[test]
+    fn an_fmu_state_of_the_motor_arm_continues_bit_for_bit_with_its_torques() {
+        let (a, _) = motor_instance();
+        initialize(a);
+        assert_eq!(set(a, &["tau_m[1]", "tau_m[3]"], &[0.4, -0.05]), OK);
+        assert_eq!(derivatives(a, &["tau_m[1]", "tau_m[3]"], &[1, 2], &[-20.0, 3.0]), OK);
+        run(a, 0.0, 30);
+        let mut state: fmi2FMUstate = std::ptr::null_mut();
+        unsafe { assert_eq!(fmi2GetFMUstate(a, &mut state), OK) };
+        let reference = run(a, 0.03, 30);
+        // The rotor of joint 1 moved: there is something to restore.
+        assert_ne!(get(a, &["theta_m[1]"])[0], 0.0);
+
+        // Other torques, then the state back: the saved torques again.
+        assert_eq!(set(a, &["tau_m[1]", "tau_m[3]"], &[0.9, 0.9]), OK);
+        unsafe { assert_eq!(fmi2SetFMUstate(a, state), OK) };
+        assert_eq!(get(a, &["tau_m[1]", "tau_m[3]"]), [0.4, -0.05]);
+        assert_eq!(run(a, 0.03, 30), reference);
+
+        let mut size = 0;
+        let mut bytes;
+        unsafe {
+            assert_eq!(fmi2SerializedFMUstateSize(a, state, &mut size), OK);
+            bytes = vec![0 as fmi2Byte; size];
+            assert_eq!(fmi2SerializeFMUstate(a, state, bytes.as_mut_ptr(), size), OK);
+            assert_eq!(fmi2FreeFMUstate(a, &mut state), OK);
+        }
+        let (b, _) = motor_instance();
+        let mut copy: fmi2FMUstate = std::ptr::null_mut();
+        unsafe {
+            assert_eq!(fmi2DeSerializeFMUstate(b, bytes.as_ptr(), size, &mut copy), OK);
+            assert_eq!(fmi2SetFMUstate(b, copy), OK);
+            assert_eq!(fmi2FreeFMUstate(b, &mut copy), OK);
+        }
+        assert_eq!(stored_torques(b)[1], [-20.0, 0.0, 0.0, 0.0]);
+        assert_eq!(run(b, 0.03, 30), reference);
+
+        // The reference arm's instance refuses the motor arm's state.
+        let (other, log) = super::instance();
+        unsafe {
+            assert_eq!(fmi2DeSerializeFMUstate(other, bytes.as_ptr(), size, &mut copy), ERROR);
+            fmi2FreeInstance(a);
+            fmi2FreeInstance(b);
+            fmi2FreeInstance(other);
+        }
+        assert!(last_message(&log).2.contains("rejected FMU state"), "{:?}", last_message(&log));
+    }
+
+    // fmi2SetReal of tau_m + fmi2DoStep of the motor arm allocate nothing.
+    #[test]
+    fn do_step_of_the_motor_arm_allocates_nothing() {
+        let (logger, _log) = Logger::memory(false);
+        let c = into_component(Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor model"));
+        initialize(c);
+        let vrs = [vr("tau_m[1]"), vr("tau_m[3]")];
+        let step = |k: usize| {
+            let t = k as f64 * 1e-3;
+            let values = [0.3 + 0.1 * t, 0.05];
+            unsafe {
+                assert_eq!(fmi2SetReal(c, vrs.as_ptr(), 2, values.as_ptr()), OK);
+                assert_eq!(fmi2DoStep(c, t, 1e-3, 0), OK);
+            }
+        };
+        step(0);
+        let start = super::counting::ALLOCATIONS.with(|a| a.get());
+        for k in 1..100 {
+            step(k);
+        }
+        let allocations = super::counting::ALLOCATIONS.with(|a| a.get()) - start;
+        assert_eq!(allocations, 0, "fmi2SetReal + fmi2DoStep allocated {allocations} times in 99 steps");
+        unsafe { fmi2FreeInstance(c) };
+    }
+
+    /// The motor-only variables of the motor arm, with their causality,
+    /// variability and type (R: Real, B: Boolean).
+    const MOTOR_VARIABLES: [(&str, Causality, Variability, char); 27] = [
+        ("tau_m[1]", Causality::Input, Variability::Continuous, 'R'),
+        ("tau_m[3]", Causality::Input, Variability::Continuous, 'R'),
+        ("theta_m[1]", Causality::Output, Variability::Continuous, 'R'),
+        ("theta_m[3]", Causality::Output, Variability::Continuous, 'R'),
+        ("omega_m[1]", Causality::Output, Variability::Continuous, 'R'),
+        ("omega_m[3]", Causality::Output, Variability::Continuous, 'R'),
+        ("stick_m[1]", Causality::Output, Variability::Discrete, 'B'),
+        ("stick_m[3]", Causality::Output, Variability::Discrete, 'B'),
+        ("n_stick_m[1]", Causality::Output, Variability::Continuous, 'R'),
+        ("n_stick_m[3]", Causality::Output, Variability::Continuous, 'R'),
+        ("tau_load[1]", Causality::Output, Variability::Continuous, 'R'),
+        ("tau_load[3]", Causality::Output, Variability::Continuous, 'R'),
+        ("tau_f_m[1]", Causality::Output, Variability::Continuous, 'R'),
+        ("tau_f_m[3]", Causality::Output, Variability::Continuous, 'R'),
+        ("E_rotor", Causality::Output, Variability::Continuous, 'R'),
+        ("Q_motor", Causality::Output, Variability::Continuous, 'R'),
+        ("gear_ratio[1]", Causality::Parameter, Variability::Fixed, 'R'),
+        ("gear_ratio[3]", Causality::Parameter, Variability::Fixed, 'R'),
+        ("J_m[1]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("J_m[3]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("b_m[1]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("b_m[3]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("tau_c[1]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("tau_c[3]", Causality::Parameter, Variability::Tunable, 'R'),
+        ("theta_m_start[1]", Causality::Parameter, Variability::Fixed, 'R'),
+        ("omega_m_start[3]", Causality::Parameter, Variability::Fixed, 'R'),
+        ("static_start", Causality::Parameter, Variability::Fixed, 'B'),
+    ];
+
+    /// True for the name of a variable only a model with motor drives has.
+    fn is_motor_variable(name: &str) -> bool {
+        let base = name.split('[').next().unwrap();
+        [
+            "tau_m", "theta_m", "omega_m", "stick_m", "n_stick_m", "tau_load", "tau_f_m", "E_rotor", "Q_motor", "gear_ratio", "J_m",
+            "b_m", "tau_c", "theta_m_start", "omega_m_start", "static_start",
+        ]
+        .contains(&base)
+    }
+
+    fn type_letter(t: &Type) -> char {
+        match t {
+            Type::Real { .. } => 'R',
+            Type::Boolean { .. } => 'B',
+        }
+    }
+
+    // The motor arm lists, for its motor joints 1 and 3 only, the input tau_m,
+    // the outputs theta_m, omega_m, stick_m, n_stick_m, tau_load, tau_f_m and
+    // E_rotor, Q_motor, the tunable J_m, b_m, tau_c, the fixed gear_ratio and
+    // start values, with these causalities and variabilities in the
+    // modelDescription.xml as well; the outputs are in ModelStructure.
+    #[test]
+    fn the_motor_model_description_lists_the_motor_variables() {
+        let model = Model::reference_rrpr_motor();
+        let vars = variables(&model);
+        for (i, v) in vars.iter().enumerate() {
+            assert_eq!(v.value_reference as usize, i, "{}", v.name);
+        }
+        let xml = model_description_xml(&model, REFERENCE_RRPR_MOTOR_TOML);
+        for (name, causality, variability, ty) in MOTOR_VARIABLES {
+            let v = vars.iter().find(|v| v.name == name).unwrap_or_else(|| panic!("no variable {name}"));
+            assert_eq!((v.causality, v.variability, type_letter(&v.ty)), (causality, variability, ty), "{name}");
+            let element = xml
+                .split("<ScalarVariable ")
+                .find(|e| e.starts_with(&format!("name=\"{name}\"")))
+                .unwrap_or_else(|| panic!("{name} is not in the XML"));
+            let (c, va) = (format!("{causality:?}").to_lowercase(), format!("{variability:?}").to_lowercase());
+            assert!(element.contains(&format!("causality=\"{c}\"")) && element.contains(&format!("variability=\"{va}\"")), "{name}: {element}");
+            if causality == Causality::Output {
+                assert!(xml.contains(&format!("<Unknown index=\"{}\" dependencies=\"\"/>", v.value_reference + 1)), "{name} not in Outputs");
+            }
+        }
+        // tau_m: N.m, its range, start 0; the ball screw's ratio in rad/m.
+        let tau = vars.iter().find(|v| v.name == "tau_m[1]").unwrap();
+        assert_eq!(tau.ty, Type::Real { unit: Some("N.m"), min: Some(-1e6), max: Some(1e6), start: Some(0.0) });
+        let ratio = |name: &str| vars.iter().find(|v| v.name == name).unwrap().ty;
+        assert!(matches!(ratio("gear_ratio[1]"), Type::Real { unit: None, start: Some(s), .. } if s == 100.0));
+        assert!(matches!(ratio("gear_ratio[3]"), Type::Real { unit: Some("rad/m"), .. }));
+        // Nothing for the rigid joints 2 and 4.
+        for j in [2, 4] {
+            for base in ["tau_m", "theta_m", "omega_m", "stick_m", "tau_load", "gear_ratio", "J_m", "theta_m_start"] {
+                let name = format!("{base}[{j}]");
+                assert!(!vars.iter().any(|v| v.name == name), "{name} exists");
+            }
+        }
+        // Inputs first: the drive inputs of every joint, then tau_m.
+        let inputs: Vec<&str> = vars.iter().filter(|v| v.causality == Causality::Input).map(|v| v.name.as_str()).collect();
+        assert_eq!(inputs.len(), 14);
+        assert_eq!(inputs[12..], ["tau_m[1]", "tau_m[3]"]);
+        assert_eq!(vars.iter().filter(|v| is_motor_variable(&v.name)).count(), 2 * 13 + 3, "13 per motor joint, E_rotor, Q_motor, static_start");
+    }
+
+    // The reference arm (no motor) lists no motor variable, and its list is
+    // the one it had before motor drives (124 variables, at 9a851d5^): the
+    // motor arm's list without its motor variables, name for name, with the
+    // same causality, variability and type.
+    #[test]
+    fn the_reference_model_description_has_no_motor_variables_and_is_unchanged() {
+        let reference = variables(&Model::reference_rrpr());
+        assert_eq!(reference.len(), 124);
+        let motor_names: Vec<&str> = reference.iter().map(|v| v.name.as_str()).filter(|n| is_motor_variable(n)).collect();
+        assert!(motor_names.is_empty(), "{motor_names:?}");
+        let xml = model_description_xml(&Model::reference_rrpr(), REFERENCE_RRPR_TOML);
+        for name in ["tau_m[", "theta_m[", "E_rotor", "gear_ratio[", "static_start"] {
+            assert!(!xml.contains(&format!("name=\"{name}")), "{name} in the reference XML");
+        }
+        let summary = |v: &super::super::description::Variable| (v.name.clone(), v.causality, v.variability, type_letter(&v.ty));
+        let without_motors: Vec<_> = variables(&Model::reference_rrpr_motor()).iter().filter(|v| !is_motor_variable(&v.name)).map(summary).collect();
+        let reference: Vec<_> = reference.iter().map(summary).collect();
+        assert_eq!(reference, without_motors);
+    }
+}
