@@ -5,7 +5,8 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
-use stick_slip_manipulator::motion::{reference_inputs, RotorServo};
+use stick_slip_manipulator::motion::reference_inputs;
+use stick_slip_manipulator::servo::RotorServo;
 use stick_slip_manipulator::{DriveInputs, Model, MotorTorques, Simulator, State};
 
 const INTERVAL: f64 = 1e-3;

@@ -9,6 +9,7 @@ pub mod forces;
 pub mod math;
 pub mod model;
 pub mod motion;
+pub mod servo;
 pub mod stepper;
 
 pub use data::Data;

@@ -348,13 +348,14 @@ fn static_start_holds_the_arm_with_the_reported_torque() {
 }
 
 /// The reference motion on the arm with motor drives under the motor-side
-/// servo of `motion::RotorServo` at the default error control: the motor
+/// servo `servo::RotorServo` at the default error control: the motor
 /// encoders θ_m/N follow q* to within 1e-4 of the motion, the links lag
 /// behind by the gear's wind-up as with flexible drives (ε of the same
 /// order), and the sub-steps stay within 2× of the flexible drives'.
 #[test]
 fn rotor_servo_runs_the_reference_motion_on_motor_drives() {
-    use stick_slip_manipulator::motion::{reference_inputs, RotorServo};
+    use stick_slip_manipulator::motion::reference_inputs;
+    use stick_slip_manipulator::servo::RotorServo;
     let run = |model: Model| {
         let mut sim = Simulator::new(model).unwrap();
         let (q, qd, qdd) = reference_inputs(0.0);
