@@ -17,16 +17,12 @@ they persist until set again, so an FMU state taken inside a segment must carry 
 
 from __future__ import annotations
 
-import functools
-import os
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 
-from helpers import INTERVAL, ROOT, Slave, input_vector, require_fmu, scratch_dir
-from urdf_fmus import _platforms_under_test
+from helpers import INTERVAL, ROOT, Slave, input_vector, require_fmu
+from urdf_fmus import BUILD_SECONDS, model_fmu
 
 MOTOR_MODEL = ROOT / "models" / "reference_rrpr_motor.toml"
 MOTOR_JOINTS = (1, 3)  # 1-based joints with a motor drive
@@ -36,9 +32,6 @@ GEAR_RATIO = {1: 100.0, 3: 628.3185307179587}
 ROTOR_INERTIA = {1: 3.0e-4, 3: 1.2e-4}
 MOTOR_VISCOUS = {1: 2.0e-4, 3: 1.0e-4}
 MOTOR_COULOMB = {1: 0.03, 3: 0.02}
-# The build's wall time, for the test report.
-BUILD_SECONDS = {}
-
 # The energy account of a motor FMU: constant over a run.
 BALANCE = {"E_kin": 1, "E_pot": 1, "E_spring": 1, "E_rotor": 1, "W_drive": -1, "Q_friction": 1, "Q_damping": 1,
            "Q_motor": 1}
@@ -54,22 +47,9 @@ TORQUE_SEGMENTS = {
 }
 
 
-@functools.lru_cache(maxsize=None)
 def motor_fmu() -> Path:
-    """The motor FMU's path, built on first use (RuntimeError with build_fmu.sh's output if
-    the build fails)."""
-    prebuilt = os.environ.get("STICKSLIP_MOTOR_FMU")
-    if prebuilt:
-        return Path(prebuilt).resolve()
-    out = scratch_dir() / "motor.fmu"
-    cmd = ["bash", "scripts/build_fmu.sh", "--platforms", _platforms_under_test(), "--model", str(MOTOR_MODEL),
-           "--out", str(out)]
-    started = time.perf_counter()
-    r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    BUILD_SECONDS["motor"] = time.perf_counter() - started
-    if r.returncode != 0 or not out.is_file():
-        raise RuntimeError(f"{' '.join(cmd)} failed (exit {r.returncode}):\n{r.stdout[-4000:]}")
-    return out
+    """The motor FMU's path, built on first use (`$STICKSLIP_MOTOR_FMU` may name a prebuilt one)."""
+    return model_fmu("motor", MOTOR_MODEL, "STICKSLIP_MOTOR_FMU")
 
 
 def require_motor_fmu() -> Path:

@@ -37,21 +37,27 @@ def _platforms_under_test() -> str:
 
 
 @functools.lru_cache(maxsize=None)
-def iiwa_fmu() -> Path:
-    """The iiwa FMU's path, built on first use (RuntimeError with build_fmu.sh's output if
-    the build fails)."""
-    prebuilt = os.environ.get("STICKSLIP_URDF_FMU")
+def model_fmu(key: str, model: Path, env: str) -> Path:
+    """The FMU of model file `model`, built on first use into the scratch directory as
+    `<key>.fmu` for the platforms under test (RuntimeError with build_fmu.sh's output if the
+    build fails); `$<env>` may name a prebuilt one."""
+    prebuilt = os.environ.get(env)
     if prebuilt:
         return Path(prebuilt).resolve()
-    out = scratch_dir() / "iiwa.fmu"
-    cmd = ["bash", "scripts/build_fmu.sh", "--platforms", _platforms_under_test(), "--model", str(IIWA_MODEL),
+    out = scratch_dir() / f"{key}.fmu"
+    cmd = ["bash", "scripts/build_fmu.sh", "--platforms", _platforms_under_test(), "--model", str(model),
            "--out", str(out)]
     started = time.perf_counter()
     r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    BUILD_SECONDS["iiwa"] = time.perf_counter() - started
+    BUILD_SECONDS[key] = time.perf_counter() - started
     if r.returncode != 0 or not out.is_file():
         raise RuntimeError(f"{' '.join(cmd)} failed (exit {r.returncode}):\n{r.stdout[-4000:]}")
     return out
+
+
+def iiwa_fmu() -> Path:
+    """The iiwa FMU's path, built on first use."""
+    return model_fmu("iiwa", IIWA_MODEL, "STICKSLIP_URDF_FMU")
 
 
 def require_iiwa_fmu() -> Path:
