@@ -8,7 +8,7 @@ use super::logger::{Category, Logger};
 use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
-use crate::model::{Model, ModelSource};
+use crate::model::{JointKind, Model, ModelSource};
 use crate::stepper::{DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
@@ -120,12 +120,19 @@ impl Instance {
         for warning in &model.warnings {
             logger.log(Status::Warning, Category::StatusWarning, &format!("model `{}`: {warning}", model.name));
         }
-        let variables = description::variables(&model);
+        let mut variables = description::variables(&model);
         let n = model.nq();
         let text = source.fingerprint_text();
+        let model_hash = description::model_hash(&text, &variables);
+        let guid = description::guid(&text, &variables);
+        // The descriptions are modelDescription.xml's and the documentation's
+        // (a third of an instance's heap); an instance never reads them.
+        for v in &mut variables {
+            v.description = String::new();
+        }
         let mut instance = Instance {
-            model_hash: description::model_hash(&text, &variables),
-            guid: description::guid(&text, &variables),
+            model_hash,
+            guid,
             variables,
             sim: Simulator::new(model.clone()).map_err(|e| e.to_string())?,
             base: model,
@@ -295,8 +302,48 @@ impl Instance {
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
         self.sim = sim;
         self.stale = false;
+        if self.use_start_values && !self.static_start {
+            self.warn_loaded_gear_springs();
+        }
         self.log_transitions();
         Ok(())
+    }
+
+    /// A rotor started at `theta_m_start[i]` whose gear spring is then
+    /// deflected past its clearance (typically: `q_start[i]` set and
+    /// `theta_m_start[i]` left at 0) starts with a gear force the user may not
+    /// have meant; the log says so and how to start it unloaded.
+    fn warn_loaded_gear_springs(&self) {
+        let model = self.sim.model();
+        let s = self.sim.state();
+        for (r, &j) in model.motor_joints().iter().enumerate() {
+            let drive = model.joints[j].drive;
+            let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { continue };
+            let n = rotor.gear_ratio;
+            let (length, force_unit) = match model.joints[j].kind {
+                JointKind::Revolute => ("rad", "N.m"),
+                JointKind::Prismatic => ("m", "N"),
+            };
+            let deflection = s.theta_m(r) / n - s.q[j];
+            if deflection.abs() > spring.clearance {
+                let force = spring.stiffness * (deflection.abs() - spring.clearance);
+                self.logger.log(
+                    Status::Warning,
+                    Category::StatusWarning,
+                    &format!(
+                        "joint {}: theta_m_start[{0}] = {} rad with q = {} starts the gear spring deflected by {:.6e} {length} \
+                         beyond its clearance, a gear force of {:.6e} {force_unit}; for an unloaded start set theta_m_start[{0}] = \
+                         gear_ratio * q_start[{0}] = {}, or static_start = true for a start that holds the arm",
+                        j + 1,
+                        s.theta_m(r),
+                        s.q[j],
+                        deflection.abs() - spring.clearance,
+                        force,
+                        n * s.q[j],
+                    ),
+                );
+            }
+        }
     }
 
     /// fmi2Terminate.

@@ -340,6 +340,7 @@ fn do_step_allocates_nothing_and_an_instance_is_small() {
     let (logger, _log) = Logger::memory(false);
     let c = into_component(Instance::new(&ModelSource::toml(REFERENCE_RRPR_TOML), logger).expect("reference model"));
     let heap = counting::LIVE_BYTES.with(|b| b.get()) - before;
+    eprintln!("heap of a reference FMU instance: {heap} bytes");
     assert!(heap > 0 && heap < 64 * 1024, "an instance owns {heap} bytes");
     initialize(c);
     let inputs = ["q_star[1]", "qd_star[1]", "q_star[3]", "qd_star[3]"];
@@ -638,6 +639,45 @@ mod motor {
             fmi2FreeInstance(other);
         }
         assert!(last_message(&log).2.contains("rejected FMU state"), "{:?}", last_message(&log));
+    }
+
+    // With use_start_values, a rotor left at theta_m_start = 0 behind a link
+    // started at q_start[3] = 0.8 m winds its gear spring up by 0.8 m: the
+    // start works as declared, and the log says what it means and how to
+    // start unloaded (theta_m_start[3] = N·q_start[3]), which then logs nothing.
+    #[test]
+    fn a_rotor_start_that_loads_the_gear_spring_is_reported() {
+        let n3 = 628.3185307179587;
+        let warnings = |theta_m_start_3: Option<f64>| {
+            let (c, log) = motor_instance();
+            unsafe {
+                assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), OK);
+                assert_eq!(fmi2EnterInitializationMode(c), OK);
+                assert_eq!(set(c, &["q_star[3]", "q_start[3]"], &[0.8, 0.8]), OK);
+                if let Some(x) = theta_m_start_3 {
+                    assert_eq!(set(c, &["theta_m_start[3]"], &[x]), OK);
+                }
+                let on = [vr("use_start_values")];
+                assert_eq!(fmi2SetBoolean(c, on.as_ptr(), 1, [fmi2True as fmi2Boolean].as_ptr()), OK);
+                assert_eq!(fmi2ExitInitializationMode(c), OK);
+                let theta = get(c, &["theta_m[3]", "q[3]"]);
+                fmi2FreeInstance(c);
+                let found: Vec<String> =
+                    log.borrow().iter().filter(|m| m.2.contains("gear spring deflected")).map(|m| m.2.clone()).collect();
+                (theta, found)
+            }
+        };
+        let (theta, found) = warnings(None);
+        assert_eq!(theta, [0.0, 0.8], "the start is the one declared");
+        assert!(!found.is_empty(), "no warning of the loaded gear spring");
+        let m = &found[0];
+        for part in ["joint 3", "theta_m_start[3] = 0 rad", "deflected by 8.000000e-1 m", "8.000000e5 N", "static_start = true"] {
+            assert!(m.contains(part), "`{part}` not in: {m}");
+        }
+        assert!(m.contains(&format!("= {}", n3 * 0.8)), "{m}");
+        let (theta, found) = warnings(Some(n3 * 0.8));
+        assert_eq!(theta, [n3 * 0.8, 0.8]);
+        assert!(found.is_empty(), "{found:?}");
     }
 
     // fmi2SetReal of tau_m + fmi2DoStep of the motor arm allocate nothing.
