@@ -164,9 +164,13 @@ def test_worker_killed_mid_sweep_still_completes(tmp_path):
 def test_interrupted_sweep_resumes_only_missing_variants(cluster, tmp_path):
     """SIGINT after 20 % of 20 variants: exit 130, the finished rows are in results.parquet.
     The same command again runs only the others (the first rows keep their `finished`
-    time and worker); the union is every variant. A changed SPEC into DIR is refused."""
+    time and worker); the union is every variant. A changed SPEC into DIR is refused.
+
+    Each variant simulates 2 s (about 0.2 s of a worker's time), so the sweep still has
+    seconds to run when the signal arrives: with 0.2 s variants a quiet machine finished
+    all 20 within the 20 ms between reading the 20 % line and the signal."""
     body = '[grid]\n"mu_k[1]" = [0.15, 0.2]\n' + k3_grid(10)
-    spec = write_spec(tmp_path / "resume.toml", body, stop_time=0.2)
+    spec = write_spec(tmp_path / "resume.toml", body, stop_time=2.0)
     out = tmp_path / "out"
     proc = sweep_process(spec, "--out", out, "--scheduler", cluster.address)
     lines = lines_until(proc, lambda line: " 20 %" in line or " 30 %" in line)
@@ -193,7 +197,7 @@ def test_interrupted_sweep_resumes_only_missing_variants(cluster, tmp_path):
     assert (kept["finished"].to_numpy() == first["finished"].to_numpy()).all()
     assert (kept["worker"].to_numpy() == first["worker"].to_numpy()).all()
 
-    changed = write_spec(tmp_path / "changed.toml", body, stop_time=0.3)
+    changed = write_spec(tmp_path / "changed.toml", body, stop_time=1.9)
     p = sweep(changed, "--out", out, "--scheduler", cluster.address)
     assert p.returncode == 1
     assert "holds results of another SPEC (changed: stop_time)" in p.stderr, p.stderr
