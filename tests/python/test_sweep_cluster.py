@@ -139,7 +139,9 @@ def test_seeded_samples_reproducible_across_runs_and_cluster_sizes(cluster, tmp_
 def test_worker_killed_mid_sweep_still_completes(tmp_path):
     """A cluster of its own; one of its two workers is killed (SIGKILL) once 10 % of the
     variants are done: the tasks it held run again on the other, every variant is ok."""
-    spec = write_spec(tmp_path / "kill.toml", "[grid]\n" + k3_grid(20), stop_time=0.2)
+    # 1 s variants (0.1 s of a worker's time): most of the sweep is still to run when the
+    # worker dies, however quiet the machine.
+    spec = write_spec(tmp_path / "kill.toml", "[grid]\n" + k3_grid(20), stop_time=1.0)
     out = tmp_path / "out"
     with loopback_cluster(tmp_path / "dask") as c:
         proc = sweep_process(spec, "--out", out, "--scheduler", c.address)
