@@ -55,7 +55,7 @@ run_cargo_stage() {
 # run_libtest_stage NAME LOG -- COMMAND args...   (a command whose output has
 # libtest's "test result:" lines, e.g. cargo test or win64_cargo test)
 run_libtest_stage() {
-    local name="$1" log="$2" rc p f g
+    local name="$1" log="$2" rc p f g start=$SECONDS
     shift 3
     banner "$name: $*"
     set +e
@@ -63,7 +63,7 @@ run_libtest_stage() {
     rc=${PIPESTATUS[0]}
     set -e
     read -r p f g < <(cargo_counts "$log")
-    SUMMARY+=("$name: $p passed, $f failed, $g ignored (exit $rc)")
+    SUMMARY+=("$name: $p passed, $f failed, $g ignored (exit $rc, $((SECONDS - start)) s)")
     TOT_PASS=$((TOT_PASS + p)); TOT_SKIP=$((TOT_SKIP + g)); TOT_FAIL=$((TOT_FAIL + f))
     if [ "$rc" -ne 0 ]; then
         FAILED_STAGES+=("$name")
@@ -139,6 +139,7 @@ fi
 # ---- 5. Python tests ------------------------------------------------------------
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python $*"
+    pytest_start=$SECONDS
     set +e
     python -m pytest tests/python -ra --junitxml="$LOGDIR/pytest.xml" "$@" 2>&1 | tee "$LOGDIR/pytest.log"
     rc=${PIPESTATUS[0]}
@@ -159,7 +160,7 @@ PY
     fi
     read -r p f e s <<<"$counts"
     desel=$(grep -Eo '[0-9]+ deselected' "$LOGDIR/pytest.log" | tail -n1 | cut -d' ' -f1 || true)
-    SUMMARY+=("pytest: $p passed, $((f + e)) failed, $s skipped, ${desel:-0} deselected (exit $rc)")
+    SUMMARY+=("pytest: $p passed, $((f + e)) failed, $s skipped, ${desel:-0} deselected (exit $rc, $((SECONDS - pytest_start)) s)")
     TOT_PASS=$((TOT_PASS + p)); TOT_FAIL=$((TOT_FAIL + f + e)); TOT_SKIP=$((TOT_SKIP + s))
     if [ "$rc" -ne 0 ] && [ "$rc" -ne 5 ]; then   # 5 = no tests collected: ok
         FAILED_STAGES+=("pytest")
@@ -172,6 +173,7 @@ fi
 # ---- summary --------------------------------------------------------------------
 banner "summary"
 printf '%s\n' "${SUMMARY[@]}"
+echo "wall time: $SECONDS s (set-up by scripts/env.sh included)"
 if [ "${#FAILED_STAGES[@]}" -gt 0 ]; then
     echo "FAILED stages: ${FAILED_STAGES[*]}"
     echo "total: $TOT_PASS passed, $TOT_FAIL failed, $TOT_SKIP skipped"
