@@ -277,6 +277,9 @@ impl Instance {
                 &format!("t = {} s: initialized; {}", s.time, phases.join(", ")),
             );
         }
+        if self.use_start_values && !self.static_start && self.warn_loaded_gear_springs() {
+            return Ok(Status::Warning);
+        }
         Ok(Status::Ok)
     }
 
@@ -302,9 +305,6 @@ impl Instance {
             .map_err(|e| Fault::error(format!("initialization at t = {} s failed: {e}", self.start_time)))?;
         self.sim = sim;
         self.stale = false;
-        if self.use_start_values && !self.static_start {
-            self.warn_loaded_gear_springs();
-        }
         self.log_transitions();
         Ok(())
     }
@@ -312,10 +312,12 @@ impl Instance {
     /// A rotor started at `theta_m_start[i]` whose gear spring is then
     /// deflected past its clearance (typically: `q_start[i]` set and
     /// `theta_m_start[i]` left at 0) starts with a gear force the user may not
-    /// have meant; the log says so and how to start it unloaded.
-    fn warn_loaded_gear_springs(&self) {
+    /// have meant; the log says so and how to start it unloaded. True if it
+    /// warned (fmi2ExitInitializationMode then returns fmi2Warning).
+    fn warn_loaded_gear_springs(&self) -> bool {
         let model = self.sim.model();
         let s = self.sim.state();
+        let mut warned = false;
         for (r, &j) in model.motor_joints().iter().enumerate() {
             let drive = model.joints[j].drive;
             let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { continue };
@@ -326,6 +328,7 @@ impl Instance {
             };
             let deflection = s.theta_m(r) / n - s.q[j];
             if deflection.abs() > spring.clearance {
+                warned = true;
                 let force = spring.stiffness * (deflection.abs() - spring.clearance);
                 self.logger.log(
                     Status::Warning,
@@ -344,6 +347,7 @@ impl Instance {
                 );
             }
         }
+        warned
     }
 
     /// fmi2Terminate.
