@@ -97,9 +97,19 @@ def sweep(*args, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([STICKSLIP, "sweep", *map(str, args)], capture_output=True, text=True, **kw)
 
 
+def _interruptible():
+    """In the child before exec: SIGINT back to its default disposition. A shell that
+    starts a command in the background without job control (`cmd &` in a script, as CI
+    runners and nohup wrappers do) sets SIGINT to ignored, children inherit that, and
+    Python then installs no KeyboardInterrupt handler: the sweep would never see the
+    Ctrl-C the tests send. A user's terminal gives the default."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def sweep_process(*args) -> subprocess.Popen:
+    """`stickslip sweep ARGS` running, its output on a pipe, interruptible by SIGINT."""
     return subprocess.Popen([STICKSLIP, "sweep", *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True, preexec_fn=_interruptible)
 
 
 @pytest.fixture(scope="module")
