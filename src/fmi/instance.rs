@@ -8,7 +8,7 @@ use super::logger::{Category, Logger};
 use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
-use crate::model::{JointKind, Model, ModelSource};
+use crate::model::{Model, ModelSource};
 use crate::stepper::{DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
@@ -322,27 +322,26 @@ impl Instance {
             let drive = model.joints[j].drive;
             let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { continue };
             let n = rotor.gear_ratio;
-            let (length, force_unit) = match model.joints[j].kind {
-                JointKind::Revolute => ("rad", "N.m"),
-                JointKind::Prismatic => ("m", "N"),
-            };
+            let units = description::joint_units(model.joints[j].kind);
             let deflection = s.theta_m(r) / n - s.q[j];
             if deflection.abs() > spring.clearance {
                 warned = true;
-                let force = spring.stiffness * (deflection.abs() - spring.clearance);
                 self.logger.log(
                     Status::Warning,
                     Category::StatusWarning,
                     &format!(
-                        "joint {}: theta_m_start[{0}] = {} rad with q = {} starts the gear spring deflected by {:.6e} {length} \
-                         beyond its clearance, a gear force of {:.6e} {force_unit}; for an unloaded start set theta_m_start[{0}] = \
-                         gear_ratio * q_start[{0}] = {}, or static_start = true for a start that holds the arm",
-                        j + 1,
-                        s.theta_m(r),
-                        s.q[j],
-                        deflection.abs() - spring.clearance,
-                        force,
-                        n * s.q[j],
+                        "joint {joint}: theta_m_start[{joint}] = {theta} rad with q = {q} {length} starts the gear spring \
+                         deflected by {excess:.6e} {length} beyond its clearance, a gear force of {force:.6e} {force_unit}; for an \
+                         unloaded start set theta_m_start[{joint}] = gear_ratio * q_start[{joint}] = {unloaded}, or \
+                         static_start = true for a start that holds the arm",
+                        joint = j + 1,
+                        theta = s.theta_m(r),
+                        q = s.q[j],
+                        length = units.coordinate,
+                        excess = deflection.abs() - spring.clearance,
+                        force = s.drive_force[j].abs(),
+                        force_unit = units.force,
+                        unloaded = n * s.q[j],
                     ),
                 );
             }

@@ -3,16 +3,16 @@
 use crate::model::{Drive, JointKind, Model};
 
 /// Units of the joint-space quantities of a joint kind.
-pub(super) struct JointUnits {
-    pub(super) coordinate: &'static str,
-    pub(super) rate: &'static str,
-    pub(super) acceleration: &'static str,
-    pub(super) force: &'static str,
-    pub(super) stiffness: &'static str,
-    pub(super) damping: &'static str,
+pub(crate) struct JointUnits {
+    pub(crate) coordinate: &'static str,
+    pub(crate) rate: &'static str,
+    pub(crate) acceleration: &'static str,
+    pub(crate) force: &'static str,
+    pub(crate) stiffness: &'static str,
+    pub(crate) damping: &'static str,
 }
 
-pub(super) fn joint_units(kind: JointKind) -> JointUnits {
+pub(crate) fn joint_units(kind: JointKind) -> JointUnits {
     match kind {
         JointKind::Revolute => JointUnits {
             coordinate: "rad",

@@ -20,6 +20,7 @@ mod writer;
 
 pub use documentation::{documentation_html, drive_colour_index, escape_html, DRIVE_COLOURS};
 pub use hash::{fnv1a_64, Fnv1a128};
+pub(crate) use joints::joint_units;
 pub use outputs::{Arity, Output, OutputKind, OutputUnit, OUTPUTS};
 pub use units::{Unit, UNITS};
 pub use variables::{
