@@ -8,6 +8,9 @@
 //! the library does at run time. Those modules may therefore depend only on
 //! each other and on the build-dependencies in Cargo.toml.
 
+#[allow(dead_code, unused_imports)]
+#[path = "src/fmi/description/mod.rs"]
+mod description;
 #[allow(dead_code)]
 #[path = "src/error.rs"]
 mod error;
@@ -17,9 +20,6 @@ mod math;
 #[allow(dead_code, unused_imports)]
 #[path = "src/model/mod.rs"]
 mod model;
-#[allow(dead_code, unused_imports)]
-#[path = "src/fmi/description/mod.rs"]
-mod description;
 /// The engine's state, which the output table reads (`crate::stepper::State`).
 #[allow(dead_code)]
 #[path = "src/stepper/state.rs"]
@@ -31,7 +31,15 @@ mod stepper {
 use std::path::Path;
 
 fn main() {
-    let inputs = ["build.rs", "models/reference_rrpr.toml", "src/model", "src/error.rs", "src/math.rs", "src/stepper/state.rs", "src/fmi/description"];
+    let inputs = [
+        "build.rs",
+        "models/reference_rrpr.toml",
+        "src/model",
+        "src/error.rs",
+        "src/math.rs",
+        "src/stepper/state.rs",
+        "src/fmi/description",
+    ];
     for path in inputs {
         println!("cargo:rerun-if-changed={path}");
     }

@@ -227,8 +227,9 @@ class Scenario:
 
 
 def tracking_scenario(end: float = 2.0) -> Scenario:
-    return Scenario("a_tracking", "reference motion, motor encoders", end, reference_paths(), dict(TRACKING_GAINS),
-                    move_end=1.5)
+    return Scenario(
+        "a_tracking", "reference motion, motor encoders", end, reference_paths(), dict(TRACKING_GAINS), move_end=1.5
+    )
 
 
 def hunting_scenarios(end: float = 5.0, move=MOVE) -> list:
@@ -243,8 +244,9 @@ def hunting_scenarios(end: float = 5.0, move=MOVE) -> list:
         ("b_P_friction_ff", "P + friction feed-forward", replace(link, integral=False, friction_ff=FRICTION_ESTIMATE)),
         ("b_PI_motor_encoder", "PI on the motor encoder instead", replace(link, feedback="motor")),
     )
-    return [Scenario(n, t, end, positioning_paths(move), {1: g, 3: HOLD_GAINS}, p, move_end=move[2])
-            for n, t, g in variants]
+    return [
+        Scenario(n, t, end, positioning_paths(move), {1: g, 3: HOLD_GAINS}, p, move_end=move[2]) for n, t, g in variants
+    ]
 
 
 def encoder_scenarios(end: float = 4.0, move=MOVE, unstable_kv: float = 120.0) -> list:
@@ -257,8 +259,10 @@ def encoder_scenarios(end: float = 4.0, move=MOVE, unstable_kv: float = 120.0) -
         ("c_link", f"link encoder, Kv = {g.kv:g}/s", replace(g, feedback="link")),
         ("c_link_fast", f"link encoder, Kv = {unstable_kv:g}/s", replace(g, feedback="link", kv=unstable_kv)),
     )
-    return [Scenario(n, t, end, positioning_paths(move), {1: gg, 3: HOLD_GAINS}, p, move_end=move[2])
-            for n, t, gg in variants]
+    return [
+        Scenario(n, t, end, positioning_paths(move), {1: gg, 3: HOLD_GAINS}, p, move_end=move[2])
+        for n, t, gg in variants
+    ]
 
 
 # ---------------------------------------------------------------------------
@@ -274,8 +278,17 @@ class AxisController:
     """The cascade of one motor axis: P position loop, PI (or P) velocity loop, feed-forward,
     torque limit; link units inside, motor torque out."""
 
-    def __init__(self, gains: Gains, gear_ratio: float, rotor_inertia: float, link_inertia: float,
-                 torque_limit: float, link_resolution: float, velocity: str = "encoder", quantized: bool = True):
+    def __init__(
+        self,
+        gains: Gains,
+        gear_ratio: float,
+        rotor_inertia: float,
+        link_inertia: float,
+        torque_limit: float,
+        link_resolution: float,
+        velocity: str = "encoder",
+        quantized: bool = True,
+    ):
         self.g = gains
         self.n = gear_ratio
         self.inertia = link_inertia + gear_ratio**2 * rotor_inertia  # J seen at the link
@@ -312,7 +325,7 @@ class AxisController:
         self.previous = encoder
         v_cmd = g.kv * (r - y) + (rd if g.velocity_ff else 0.0)
         ev = v_cmd - v
-        ff = (self.inertia * rdd if g.torque_ff else 0.0)
+        ff = self.inertia * rdd if g.torque_ff else 0.0
         if g.friction_ff:
             ff += g.friction_ff * math.tanh(rd / g.friction_ff_speed)
         demand = (self.kp * ev + self.integrator + ff) / self.n
@@ -327,12 +340,33 @@ class AxisController:
 # the closed loop
 
 
-LOGGED = ("r", "rd", "q", "qd", "x", "xd", "y", "v", "tau_m", "tau_ff", "tau_load", "windup", "F_drive",
-          "F_friction", "stick", "stick_m")
+LOGGED = (
+    "r",
+    "rd",
+    "q",
+    "qd",
+    "x",
+    "xd",
+    "y",
+    "v",
+    "tau_m",
+    "tau_ff",
+    "tau_load",
+    "windup",
+    "F_drive",
+    "F_friction",
+    "stick",
+    "stick_m",
+)
 
 
-def run(scenario: Scenario, fmu: str | Path | None = None, step: float = STEP, velocity: str = "encoder",
-        quantized: bool = True) -> dict:
+def run(
+    scenario: Scenario,
+    fmu: str | Path | None = None,
+    step: float = STEP,
+    velocity: str = "encoder",
+    quantized: bool = True,
+) -> dict:
     """Steps the closed loop of ``scenario`` from t = 0 to its end. Returns a dict: ``time``
     (n+1 points) and per logged quantity a dict {joint: array} for the motor joints:
     r, rd (path), q, qd (link), x = theta_m/N, xd = omega_m/N (motor, link units), y, v (what
@@ -351,8 +385,12 @@ def run(scenario: Scenario, fmu: str | Path | None = None, step: float = STEP, v
     if joints != MOTOR_JOINTS:
         raise ValueError(f"{fmu}: expected motor drives on joints {MOTOR_JOINTS} (models/reference_rrpr_motor.toml)")
     unzipdir = extract(fmu, unzipdir=tempfile.mkdtemp(prefix="axis_control_"))
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=scenario.name)
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName=scenario.name,
+    )
     n = int(round(scenario.end / step))
     log = {k: {j: np.zeros(n + 1) for j in joints} for k in LOGGED}
     log["time"] = np.array([k * step for k in range(n + 1)])
@@ -378,8 +416,16 @@ def run(scenario: Scenario, fmu: str | Path | None = None, step: float = STEP, v
         slave.exitInitializationMode()
         param = lambda name: slave.getReal([vr[name]])[0]  # noqa: E731
         controllers = {
-            j: AxisController(scenario.gains[j], param(f"gear_ratio[{j}]"), param(f"J_m[{j}]"), LINK_INERTIA[j],
-                              TORQUE_LIMIT[j], LINK_RESOLUTION[j], velocity, quantized)
+            j: AxisController(
+                scenario.gains[j],
+                param(f"gear_ratio[{j}]"),
+                param(f"J_m[{j}]"),
+                LINK_INERTIA[j],
+                TORQUE_LIMIT[j],
+                LINK_RESOLUTION[j],
+                velocity,
+                quantized,
+            )
             for j in joints
         }
         for j in joints:
@@ -390,15 +436,31 @@ def run(scenario: Scenario, fmu: str | Path | None = None, step: float = STEP, v
             flags = slave.getBoolean(bool_vrs)
             taus = []
             for m, j in enumerate(joints):
-                q, qd, theta, omega, tau_load, windup, f_drive, f_friction = values[m * len(reals):(m + 1) * len(reals)]
+                q, qd, theta, omega, tau_load, windup, f_drive, f_friction = values[
+                    m * len(reals) : (m + 1) * len(reals)
+                ]
                 r, rd, rdd = scenario.paths[j](t)
                 c = controllers[j]
                 tau, y, v, ff = c.update(r, rd, rdd, theta, q, omega, step)
                 taus.append(tau)
-                row = {"r": r, "rd": rd, "q": q, "qd": qd, "x": theta / c.n, "xd": omega / c.n, "y": y, "v": v,
-                       "tau_m": tau, "tau_ff": ff, "tau_load": tau_load, "windup": windup, "F_drive": f_drive,
-                       "F_friction": f_friction, "stick": float(flags[2 * m] != 0),
-                       "stick_m": float(flags[2 * m + 1] != 0)}
+                row = {
+                    "r": r,
+                    "rd": rd,
+                    "q": q,
+                    "qd": qd,
+                    "x": theta / c.n,
+                    "xd": omega / c.n,
+                    "y": y,
+                    "v": v,
+                    "tau_m": tau,
+                    "tau_ff": ff,
+                    "tau_load": tau_load,
+                    "windup": windup,
+                    "F_drive": f_drive,
+                    "F_friction": f_friction,
+                    "stick": float(flags[2 * m] != 0),
+                    "stick_m": float(flags[2 * m + 1] != 0),
+                }
                 for key, value in row.items():
                     log[key][j][k] = value
             if k == n:
@@ -523,16 +585,26 @@ def gain_sweep(fmu=None, kvs=(10, 20, 30, 40, 60, 80, 100, 120, 160, 240, 320), 
         rows = []
         for kv in kvs:
             g = replace(POSITIONING_GAINS, feedback=fb, kv=float(kv))
-            sc = Scenario(f"sweep_{fb}_{kv}", "", end, positioning_paths(move), {1: g, 3: HOLD_GAINS},
-                          {**HARMONIC_DRIVE, **OWN_FRICTION}, move_end=move[2])
+            sc = Scenario(
+                f"sweep_{fb}_{kv}",
+                "",
+                end,
+                positioning_paths(move),
+                {1: g, 3: HOLD_GAINS},
+                {**HARMONIC_DRIVE, **OWN_FRICTION},
+                move_end=move[2],
+            )
             m = hunting_metrics(run(sc, fmu), settle=0.0)
             m["kv"] = float(kv)
             m["stable"] = not m["saturated"] and m["max_abs_error"] < 5e-3
             rows.append(m)
         unstable = [r["kv"] for r in rows if not r["stable"]]
         stable = [r["kv"] for r in rows if r["stable"] and (not unstable or r["kv"] < min(unstable))]
-        out[fb] = {"runs": rows, "largest_stable_kv": max(stable) if stable else None,
-                   "smallest_unstable_kv": min(unstable) if unstable else None}
+        out[fb] = {
+            "runs": rows,
+            "largest_stable_kv": max(stable) if stable else None,
+            "smallest_unstable_kv": min(unstable) if unstable else None,
+        }
     return out
 
 
@@ -542,16 +614,25 @@ def _two_mass_sampled(k: float, link_inertia: float, rotor: float, step: float):
     input the link-side motor torque held over a period: (A_d, B_d) of the sampled plant."""
     from scipy.linalg import expm
 
-    a = np.array([[0, 1, 0, 0], [-k / rotor, 0, k / rotor, 0], [0, 0, 0, 1],
-                  [k / link_inertia, 0, -k / link_inertia, 0]], dtype=float)
+    a = np.array(
+        [[0, 1, 0, 0], [-k / rotor, 0, k / rotor, 0], [0, 0, 0, 1], [k / link_inertia, 0, -k / link_inertia, 0]],
+        dtype=float,
+    )
     b = np.array([[0.0], [1.0 / rotor], [0.0], [0.0]])
     m = expm(np.block([[a, b], [np.zeros((1, 5))]]) * step)
     return m[:4, :4], m[:4, 4:]
 
 
-def linear_loop_radius(kv: float, feedback: str, gains: Gains = POSITIONING_GAINS, k: float = HARMONIC_DRIVE["k[1]"],
-                       link_inertia: float = LINK_INERTIA[1], gear_ratio: float = 100.0, rotor_inertia: float = 3e-4,
-                       step: float = STEP) -> float:
+def linear_loop_radius(
+    kv: float,
+    feedback: str,
+    gains: Gains = POSITIONING_GAINS,
+    k: float = HARMONIC_DRIVE["k[1]"],
+    link_inertia: float = LINK_INERTIA[1],
+    gear_ratio: float = 100.0,
+    rotor_inertia: float = 3e-4,
+    step: float = STEP,
+) -> float:
     """The spectral radius of the sampled closed loop of joint 1 without friction and
     backlash: the two masses (rotor N^2 J_m and link I on the gear spring k, link units) under
     a zero-order-held torque, the controller above with the encoder difference as velocity.
@@ -602,8 +683,14 @@ def linear_stability_limit(feedback: str, gains: Gains = POSITIONING_GAINS, kv_m
     return float(hi)
 
 
-FRICTIONLESS = {"k[1]": HARMONIC_DRIVE["k[1]"], "Delta[1]": 0.0, "mu_s[1]": 0.0, "mu_k[1]": 0.0, "tau_c[1]": 0.0,
-                "b_m[1]": 0.0}
+FRICTIONLESS = {
+    "k[1]": HARMONIC_DRIVE["k[1]"],
+    "Delta[1]": 0.0,
+    "mu_s[1]": 0.0,
+    "mu_k[1]": 0.0,
+    "tau_c[1]": 0.0,
+    "b_m[1]": 0.0,
+}
 
 
 def linear_check(fmu=None, factors=(0.8, 1.2), end: float = 4.0) -> dict:
@@ -618,14 +705,24 @@ def linear_check(fmu=None, factors=(0.8, 1.2), end: float = 4.0) -> dict:
         out[fb] = {"limit_kv": limit, "runs": []}
         for f in factors:
             g = replace(POSITIONING_GAINS, feedback=fb, kv=f * limit)
-            log = run(Scenario(f"linear_{fb}_{f:g}", "", end, positioning_paths(), {1: g, 3: HOLD_GAINS},
-                               FRICTIONLESS), fmu, quantized=False)
+            log = run(
+                Scenario(f"linear_{fb}_{f:g}", "", end, positioning_paths(), {1: g, 3: HOLD_GAINS}, FRICTIONLESS),
+                fmu,
+                quantized=False,
+            )
             t = log["time"]
             e = log["r"][1] - log["q"][1]
             early = np.ptp(e[(t >= 1.5) & (t <= 2.0)])
             late = np.ptp(e[t >= end - 0.5])
-            out[fb]["runs"].append({"factor": f, "kv": f * limit, "ptp_early": float(early), "ptp_late": float(late),
-                                    "growth": float(late / early) if early > 0 else float("nan")})
+            out[fb]["runs"].append(
+                {
+                    "factor": f,
+                    "kv": f * limit,
+                    "ptp_early": float(early),
+                    "ptp_late": float(late),
+                    "growth": float(late / early) if early > 0 else float("nan"),
+                }
+            )
     return out
 
 
@@ -648,8 +745,9 @@ def _stick_bars(ax, t, flag, y, height, color, label):
     on = flag > 0.5
     edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2]):
-        ax.broken_barh([(t[a], t[min(b, len(t) - 1)] - t[a] + 1e-9)], (y - height / 2, height), color=color,
-                       label=label)
+        ax.broken_barh(
+            [(t[a], t[min(b, len(t) - 1)] - t[a] + 1e-9)], (y - height / 2, height), color=color, label=label
+        )
         label = None
     if label:  # never stuck: the legend entry all the same
         ax.broken_barh([], (y - height / 2, height), color=color, label=label)
@@ -674,8 +772,14 @@ def figure_tracking(log: dict, path: Path):
         ax[0].plot(t, log["r"][j], "k--", lw=1, label="path r")
         ax[0].plot(t, log["q"][j], lw=1.2, label="link q")
         ax[0].set_ylabel(f"q{j} ({u})")
-        ax[0].set_title(f"joint {j}: " + ("revolute, gear N = 100, k = 1e6 N·m/rad" if j == 1
-                                          else "prismatic, ball screw of 10 mm lead, k = 1e6 N/m"))
+        ax[0].set_title(
+            f"joint {j}: "
+            + (
+                "revolute, gear N = 100, k = 1e6 N·m/rad"
+                if j == 1
+                else "prismatic, ball screw of 10 mm lead, k = 1e6 N/m"
+            )
+        )
         ax[0].legend(loc="lower right", fontsize=8)
         e = log["r"][j] - log["q"][j]
         me = log["r"][j] - log["x"][j]
@@ -726,10 +830,17 @@ def figure_hunting(logs: list, metrics: list, path: Path, joint: int = 1):
         ax[1].axhline(0, color="k", lw=0.5)
         ax[1].axvspan(m["window"][0], m["window"][1], color="0.92", zorder=0)
         period = f", period {m['period']:.2f} s" if math.isfinite(m["period"]) else ""
-        ax[1].text(0.02, 0.04, f"after {m['window'][0]:g} s: {m['sign_changes']} sign changes, "
-                   f"{m['stick_phases']} stick phases\n±{1e3 * m['amplitude']:.3f} mrad{period}, "
-                   f"mean {1e3 * m['mean_error']:+.3f} mrad", transform=ax[1].transAxes, fontsize=8,
-                   va="bottom", bbox=dict(facecolor="white", alpha=0.85, edgecolor="none"))
+        ax[1].text(
+            0.02,
+            0.04,
+            f"after {m['window'][0]:g} s: {m['sign_changes']} sign changes, "
+            f"{m['stick_phases']} stick phases\n±{1e3 * m['amplitude']:.3f} mrad{period}, "
+            f"mean {1e3 * m['mean_error']:+.3f} mrad",
+            transform=ax[1].transAxes,
+            fontsize=8,
+            va="bottom",
+            bbox=dict(facecolor="white", alpha=0.85, edgecolor="none"),
+        )
         ax[2].plot(t, 1e3 * log["windup"][joint], color="tab:green", lw=1.2)
         ax[2].axhline(0, color="k", lw=0.5)
         for sgn in (-1, 1):
@@ -754,8 +865,11 @@ def figure_hunting(logs: list, metrics: list, path: Path, joint: int = 1):
     errors = np.concatenate([1e3 * (log["r"][joint] - log["q"][joint]) for log in logs])
     lo, hi = errors.min(), errors.max()
     axes[1, 0].set_ylim(lo - 0.45 * (hi - lo), hi + 0.05 * (hi - lo))
-    fig.suptitle("(b) Slow positioning move of joint 1 (harmonic drive, bearing friction with a Stribeck drop "
-                 "μs 0.2 → μk 0.1): link encoder, and on the right the motor encoder", fontsize=11)
+    fig.suptitle(
+        "(b) Slow positioning move of joint 1 (harmonic drive, bearing friction with a Stribeck drop "
+        "μs 0.2 → μk 0.1): link encoder, and on the right the motor encoder",
+        fontsize=11,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -784,9 +898,16 @@ def figure_encoders(logs: list, metrics: list, sweep: dict | None, limits: dict 
             ax[0].set_ylim(*lim)
         if m["saturated"]:
             ax[0].set_title(log["scenario"].title + ": unstable", fontsize=10, color="tab:red")
-        ax[0].text(0.98, 0.96, f"at the end: link {1e3 * m['error_end']:+.4f} mrad, "
-                   f"motor {1e3 * m['motor_error_end']:+.5f} mrad", transform=ax[0].transAxes, fontsize=8,
-                   ha="right", va="top", bbox=dict(facecolor="white", alpha=0.85, edgecolor="none"))
+        ax[0].text(
+            0.98,
+            0.96,
+            f"at the end: link {1e3 * m['error_end']:+.4f} mrad, motor {1e3 * m['motor_error_end']:+.5f} mrad",
+            transform=ax[0].transAxes,
+            fontsize=8,
+            ha="right",
+            va="top",
+            bbox=dict(facecolor="white", alpha=0.85, edgecolor="none"),
+        )
         ax[1].plot(t, 1e3 * log["windup"][joint], color="tab:green", lw=1.2)
         ax[1].axhline(0, color="k", lw=0.5)
         if np.abs(log["windup"][joint]).max() * 1e3 < lim[1] - 0.1:
@@ -817,14 +938,21 @@ def figure_encoders(logs: list, metrics: list, sweep: dict | None, limits: dict 
         if limits:
             for fb, ls in (("motor", "--"), ("link", ":")):
                 if math.isfinite(limits[fb]):
-                    ax.axvline(limits[fb], color="k", ls=ls, lw=0.8,
-                               label=f"linearized loop unstable from Kv = {limits[fb]:.0f}/s ({fb})")
+                    ax.axvline(
+                        limits[fb],
+                        color="k",
+                        ls=ls,
+                        lw=0.8,
+                        label=f"linearized loop unstable from Kv = {limits[fb]:.0f}/s ({fb})",
+                    )
         ax.set_xlabel("position gain Kv (1/s)")
         ax.set_ylabel("mrad")
         ax.set_title("gain sweep (PI, same move; red x: unstable, the torque saturates)", fontsize=10)
         ax.legend(fontsize=8, loc="lower right")
-    fig.suptitle("(c) Motor encoder against link encoder: joint 1 on the harmonic drive, the arm's own "
-                 "friction (μs = μk = 0.2)", fontsize=11)
+    fig.suptitle(
+        "(c) Motor encoder against link encoder: joint 1 on the harmonic drive, the arm's own friction (μs = μk = 0.2)",
+        fontsize=11,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -870,68 +998,110 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--fmu", default=str(DEFAULT_FMU), help="the motor arm's FMU (models/reference_rrpr_motor.toml)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="directory for PNGs, CSVs and summary.json")
-    p.add_argument("--docs-figures", default="",
-                   help=f"also write the figures here ({DOCS_FIGURES.relative_to(ROOT)} for docs/control.md); default: not")
-    p.add_argument("--quick", action="store_true",
-                   help="(c) held to 3 s, no gain sweep, no frictionless check: the CI's reduced form")
-    p.add_argument("--velocity", choices=("encoder", "tacho"), default="encoder",
-                   help="velocity from the motor encoder's difference (default) or omega_m (a tachometer)")
+    p.add_argument(
+        "--docs-figures",
+        default="",
+        help=f"also write the figures here ({DOCS_FIGURES.relative_to(ROOT)} for docs/control.md); default: not",
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="(c) held to 3 s, no gain sweep, no frictionless check: the CI's reduced form",
+    )
+    p.add_argument(
+        "--velocity",
+        choices=("encoder", "tacho"),
+        default="encoder",
+        help="velocity from the motor encoder's difference (default) or omega_m (a tachometer)",
+    )
     a = p.parse_args(argv)
     if not Path(a.fmu).is_file():
-        sys.exit(f"axis_control.py: {a.fmu} not found: build it with `bash scripts/build_fmu.sh --platforms linux64 "
-                 f"--model models/reference_rrpr_motor.toml --out {a.fmu}`")
+        sys.exit(
+            f"axis_control.py: {a.fmu} not found: build it with `bash scripts/build_fmu.sh --platforms linux64 "
+            f"--model models/reference_rrpr_motor.toml --out {a.fmu}`"
+        )
     import matplotlib
 
     matplotlib.use("Agg")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    summary = {"fmu": str(a.fmu), "controller_period_s": STEP, "velocity_estimate": a.velocity,
-               "motor_encoder_counts_per_rev": MOTOR_COUNTS, "link_encoder_resolution_joint1_rad": LINK_RESOLUTION[1],
-               "torque_limit_Nm": {str(j): v for j, v in TORQUE_LIMIT.items()},
-               "link_inertia_nominal": {str(j): v for j, v in LINK_INERTIA.items()}}
+    summary = {
+        "fmu": str(a.fmu),
+        "controller_period_s": STEP,
+        "velocity_estimate": a.velocity,
+        "motor_encoder_counts_per_rev": MOTOR_COUNTS,
+        "link_encoder_resolution_joint1_rad": LINK_RESOLUTION[1],
+        "torque_limit_Nm": {str(j): v for j, v in TORQUE_LIMIT.items()},
+        "link_inertia_nominal": {str(j): v for j, v in LINK_INERTIA.items()},
+    }
     figures = []
 
     # (a) the reference motion
     log = run(tracking_scenario(), a.fmu, velocity=a.velocity)
     write_csv(log, out / "a_tracking.csv")
-    summary["a_tracking"] = {"gains": {str(j): asdict(g) for j, g in TRACKING_GAINS.items()},
-                             "parameters": {}, "wall_s": log["wall"], "n_substeps": log["n_substeps"],
-                             "joints": tracking_metrics(log)}
+    summary["a_tracking"] = {
+        "gains": {str(j): asdict(g) for j, g in TRACKING_GAINS.items()},
+        "parameters": {},
+        "wall_s": log["wall"],
+        "n_substeps": log["n_substeps"],
+        "joints": tracking_metrics(log),
+    }
     figure_tracking(log, out / "axis_control_tracking.png")
     figures.append("axis_control_tracking.png")
     print(f"(a) reference motion, motor encoders ({log['wall']:.2f} s):")
     for j, m in summary["a_tracking"]["joints"].items():
         u = m["unit"]
-        print(f"    joint {j}: max |r - q| {m['max_link_error']:.3e} {u}, max wind-up {m['max_windup']:.3e} {u}, "
-              f"at 2 s: link error {m['link_error_end']:+.3e} {u}, motor error {m['motor_error_end']:+.1e} {u}, "
-              f"peak torque {m['torque_peak']:.3f} N.m")
+        print(
+            f"    joint {j}: max |r - q| {m['max_link_error']:.3e} {u}, max wind-up {m['max_windup']:.3e} {u}, "
+            f"at 2 s: link error {m['link_error_end']:+.3e} {u}, motor error {m['motor_error_end']:+.1e} {u}, "
+            f"peak torque {m['torque_peak']:.3f} N.m"
+        )
 
     # (b) hunting
     end_b = 5.0
-    summary["b_hunting"] = {"parameters": {**HARMONIC_DRIVE, **STRIBECK}, "move": dict(zip(("q0", "q1", "T"), MOVE)),
-                            "friction_estimate_link_Nm": FRICTION_ESTIMATE}
+    summary["b_hunting"] = {
+        "parameters": {**HARMONIC_DRIVE, **STRIBECK},
+        "move": dict(zip(("q0", "q1", "T"), MOVE)),
+        "friction_estimate_link_Nm": FRICTION_ESTIMATE,
+    }
     print(f"(b) slow positioning move of joint 1, hunting counted from {MOVE[2] + 1:g} s to {end_b:g} s:")
-    logs_b, metrics_b, summary["b_hunting"]["runs"] = _positioning(hunting_scenarios(end_b), a, out, lambda m: (
-        f"{m['sign_changes']:3d} sign changes, {m['stick_phases']:3d} stick phases, "
-        f"amplitude {m['amplitude']:.3e} rad, period {m['period']:.3f} s, mean error {m['mean_error']:+.3e} rad"))
+    logs_b, metrics_b, summary["b_hunting"]["runs"] = _positioning(
+        hunting_scenarios(end_b),
+        a,
+        out,
+        lambda m: (
+            f"{m['sign_changes']:3d} sign changes, {m['stick_phases']:3d} stick phases, "
+            f"amplitude {m['amplitude']:.3e} rad, period {m['period']:.3f} s, mean error {m['mean_error']:+.3e} rad"
+        ),
+    )
     figure_hunting(logs_b, metrics_b, out / "axis_control_hunting.png")
     figures.append("axis_control_hunting.png")
 
     # (c) encoders
     end_c = 3.0 if a.quick else 4.0
-    summary["c_encoders"] = {"parameters": {**HARMONIC_DRIVE, **OWN_FRICTION},
-                             "move": dict(zip(("q0", "q1", "T"), MOVE))}
+    summary["c_encoders"] = {
+        "parameters": {**HARMONIC_DRIVE, **OWN_FRICTION},
+        "move": dict(zip(("q0", "q1", "T"), MOVE)),
+    }
     print("(c) motor encoder against link encoder, the arm's own friction:")
-    logs_c, metrics_c, summary["c_encoders"]["runs"] = _positioning(encoder_scenarios(end_c), a, out, lambda m: (
-        f"link error at the end {m['error_end']:+.3e} rad, motor error {m['motor_error_end']:+.3e} rad, wind-up "
-        f"{m['windup_end']:+.3e} rad, hold amplitude {m['amplitude']:.2e} rad"
-        f"{', SATURATED' if m['saturated'] else ''}"))
+    logs_c, metrics_c, summary["c_encoders"]["runs"] = _positioning(
+        encoder_scenarios(end_c),
+        a,
+        out,
+        lambda m: (
+            f"link error at the end {m['error_end']:+.3e} rad, motor error {m['motor_error_end']:+.3e} rad, wind-up "
+            f"{m['windup_end']:+.3e} rad, hold amplitude {m['amplitude']:.2e} rad"
+            f"{', SATURATED' if m['saturated'] else ''}"
+        ),
+    )
     sweep = None
     limits = {fb: linear_stability_limit(fb) for fb in ("motor", "link")}
     summary["c_encoders"]["linear_stability_limit_kv"] = limits
-    print(f"    linearized sampled loop (no friction, no backlash): unstable from Kv = {limits['motor']:.1f}/s on the "
-          f"motor encoder, {limits['link']:.1f}/s on the link encoder")
+    print(
+        f"    linearized sampled loop (no friction, no backlash): unstable from Kv = {limits['motor']:.1f}/s on the "
+        f"motor encoder, {limits['link']:.1f}/s on the link encoder"
+    )
     if not a.quick:
         t0 = time.perf_counter()
         check = linear_check(a.fmu)
@@ -941,16 +1111,35 @@ def main(argv=None):
             print(f"    frictionless FMU, {fb} encoder: oscillation after the move grows {growth}")
         sweep = gain_sweep(a.fmu)
         summary["c_encoders"]["gain_sweep"] = {
-            fb: {"largest_stable_kv": s["largest_stable_kv"], "smallest_unstable_kv": s["smallest_unstable_kv"],
-                 "runs": [{k: r[k] for k in ("kv", "stable", "max_abs_error", "error_end", "motor_error_end",
-                                             "sign_changes", "saturated")} for r in s["runs"]]}
-            for fb, s in sweep.items()}
+            fb: {
+                "largest_stable_kv": s["largest_stable_kv"],
+                "smallest_unstable_kv": s["smallest_unstable_kv"],
+                "runs": [
+                    {
+                        k: r[k]
+                        for k in (
+                            "kv",
+                            "stable",
+                            "max_abs_error",
+                            "error_end",
+                            "motor_error_end",
+                            "sign_changes",
+                            "saturated",
+                        )
+                    }
+                    for r in s["runs"]
+                ],
+            }
+            for fb, s in sweep.items()
+        }
         fmt = lambda x: "none in the sweep" if x is None else f"{x:g}/s"  # noqa: E731
         motor, link = sweep["motor"], sweep["link"]
-        print(f"    gain sweep with friction: motor encoder stable up to Kv = {fmt(motor['largest_stable_kv'])} "
-              f"(unstable from {fmt(motor['smallest_unstable_kv'])}), link encoder up to "
-              f"{fmt(link['largest_stable_kv'])} (unstable from {fmt(link['smallest_unstable_kv'])})"
-              f"  ({time.perf_counter() - t0:.1f} s with the check)")
+        print(
+            f"    gain sweep with friction: motor encoder stable up to Kv = {fmt(motor['largest_stable_kv'])} "
+            f"(unstable from {fmt(motor['smallest_unstable_kv'])}), link encoder up to "
+            f"{fmt(link['largest_stable_kv'])} (unstable from {fmt(link['smallest_unstable_kv'])})"
+            f"  ({time.perf_counter() - t0:.1f} s with the check)"
+        )
     figure_encoders(logs_c, metrics_c, sweep, limits, out / "axis_control_encoders.png")
     figures.append("axis_control_encoders.png")
 

@@ -190,7 +190,9 @@ def main(argv=None):
             ax[j].plot(log["time"], log["r"][:, j], "--", lw=0.8, label="path")
             ax[j].set_ylabel(unit)
             ax[j].legend(loc="lower right")
-            ax[2].plot(log["time"], log["stick"][:, j] * (1 + 0.1 * j), drawstyle="steps-post", label=f"joint {i} stuck")
+            ax[2].plot(
+                log["time"], log["stick"][:, j] * (1 + 0.1 * j), drawstyle="steps-post", label=f"joint {i} stuck"
+            )
         ax[2].set_xlabel("t (s)")
         ax[2].legend()
         Path(a.plot).parent.mkdir(parents=True, exist_ok=True)

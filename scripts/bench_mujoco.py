@@ -70,8 +70,9 @@ def mujoco_xml_from_urdf(path, balance_inertia: bool = True) -> str:
     xml = re.sub(r"<(visual|collision)\b.*?</\1>", "", xml, flags=re.S)
     xml = re.sub(r"<(visual|collision)\b[^>]*/>", "", xml)
     opts = ' balanceinertia="true"' if balance_inertia else ""
-    xml, count = re.subn(r"(<robot\b[^>]*>)", r'\1<mujoco><compiler discardvisual="true"%s/></mujoco>' % opts,
-                         xml, count=1)
+    xml, count = re.subn(
+        r"(<robot\b[^>]*>)", r'\1<mujoco><compiler discardvisual="true"%s/></mujoco>' % opts, xml, count=1
+    )
     if count != 1:
         raise SystemExit(f"{path}: no <robot> element")
     return xml
@@ -138,9 +139,11 @@ def mujoco_arm(model_path: Path, timestep: float, pose=None):
     m.opt.timestep = timestep
     m.opt.gravity[:] = doc.get("gravity", [0.0, 0.0, -9.81])
     d = mujoco.MjData(m)
-    desc = (f"{arm}: nq {m.nq}, {sum(m.body_mass):.4g} kg, drives {drives}, frictionloss "
-            f"{np.array2string(m.dof_frictionloss, precision=3)} N·m, dof_damping {m.dof_damping.max():g}, "
-            f"timestep {m.opt.timestep:g} s, integrator {mujoco.mjtIntegrator(m.opt.integrator).name}")
+    desc = (
+        f"{arm}: nq {m.nq}, {sum(m.body_mass):.4g} kg, drives {drives}, frictionloss "
+        f"{np.array2string(m.dof_frictionloss, precision=3)} N·m, dof_damping {m.dof_damping.max():g}, "
+        f"timestep {m.opt.timestep:g} s, integrator {mujoco.mjtIntegrator(m.opt.integrator).name}"
+    )
     return m, d, np.array(pose, float), desc
 
 
@@ -178,8 +181,9 @@ def engine_estimates(filter_: str, substeps: int) -> dict:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--model", action="append", type=Path, help="model file (repeatable); default: both example arms")
     p.add_argument("--timestep", type=float, default=2e-6)
     p.add_argument("--steps", type=int, default=100_000, help="mj_step calls per repetition (default 100000)")
@@ -205,10 +209,14 @@ def main(argv=None) -> int:
         wall, cpu = [w for w, _ in per], [c for _, c in per]
         med, best, cmed = statistics.median(wall), min(wall), statistics.median(cpu)
         rows.append((Path(path).stem, m.nq, med, best, cmed))
-        print(f"bench_mujoco: {Path(path).stem}: mj_step {med:.3f} µs median wall ({cmed:.3f} µs CPU), {best:.3f} µs "
-              f"best of {a.repeats} x {a.steps} steps; load average {load()}", flush=True)
-    print("\n| arm | joints | mj_step at %g s: median wall | best wall | median CPU |\n|---|---|---|---|---|"
-          % a.timestep)
+        print(
+            f"bench_mujoco: {Path(path).stem}: mj_step {med:.3f} µs median wall ({cmed:.3f} µs CPU), {best:.3f} µs "
+            f"best of {a.repeats} x {a.steps} steps; load average {load()}",
+            flush=True,
+        )
+    print(
+        "\n| arm | joints | mj_step at %g s: median wall | best wall | median CPU |\n|---|---|---|---|---|" % a.timestep
+    )
     for arm, nq, med, best, cmed in rows:
         print(f"| {arm} | {nq} | {med:.3f} µs | {best:.3f} µs | {cmed:.3f} µs |")
     engine = engine_estimates(a.engine_filter, a.substeps)
@@ -221,8 +229,10 @@ def main(argv=None) -> int:
             ratio = f"{us / ref:.2f}" if ref else "–"
             print(f"| {key} | {us:.3f} µs | {f'{ref:.3f} µs' if ref else '–'} | {ratio} |")
     else:
-        print(f"\n(no criterion estimates matching '{a.engine_filter}' under target/criterion: "
-              "run with --engine for the engine's sub-step and the ratio)")
+        print(
+            f"\n(no criterion estimates matching '{a.engine_filter}' under target/criterion: "
+            "run with --engine for the engine's sub-step and the ratio)"
+        )
     return 0
 
 

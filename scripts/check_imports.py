@@ -25,7 +25,9 @@ ITEM = re.compile(
     re.M,
 )
 USE = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?use\s+([^;]+);", re.M)
-IMPL = re.compile(r"^\s*impl(?:<[^>]*>)?\s+(?:[A-Za-z_:<>, ]+\s+for\s+)?([A-Za-z_][A-Za-z0-9_]*)\s*(?:<[^>{]*>)?\s*\{", re.M)
+IMPL = re.compile(
+    r"^\s*impl(?:<[^>]*>)?\s+(?:[A-Za-z_:<>, ]+\s+for\s+)?([A-Za-z_][A-Za-z0-9_]*)\s*(?:<[^>{]*>)?\s*\{", re.M
+)
 
 
 def strip_comments(text):
@@ -164,7 +166,9 @@ class Crate:
             if self.defines(f, ty):
                 continue
             for other in self.files:
-                if other != f and re.search(rf"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:struct|enum)\s+{ty}\b", self.text[other], re.M):
+                if other != f and re.search(
+                    rf"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:struct|enum)\s+{ty}\b", self.text[other], re.M
+                ):
                     deps.add(other)
         return deps
 

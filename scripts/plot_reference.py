@@ -124,15 +124,17 @@ def plot_with_stick_bar(ax, t, y, stick, color, label):
     tol = 1e-9 * span
     ax.yaxis.set_major_locator(FixedLocator(ticks[(ticks >= lo - tol) & (ticks <= lo + span + tol)]))
     frac = float(np.mean(np.nan_to_num(stick) > 0.5))
-    ax.set_title(f"stick: {100 * frac:.0f} % of samples, {len(segs)} phases",
-                 loc="right", fontsize=8, color=STICK_COLOR, pad=2)
+    ax.set_title(
+        f"stick: {100 * frac:.0f} % of samples, {len(segs)} phases", loc="right", fontsize=8, color=STICK_COLOR, pad=2
+    )
 
 
 def joint_figure(t, joints, cols, names, sticks, title, ylabel_fmt, fname, top=None):
     """One subplot per joint (+ optional top subplot); returns the saved path."""
     nrows = len(joints) + (1 if top else 0)
-    fig, axes = plt.subplots(nrows, 1, sharex=True, figsize=(10, 1.9 * nrows + 1.2), squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        nrows, 1, sharex=True, figsize=(10, 1.9 * nrows + 1.2), squeeze=False, layout="constrained"
+    )
     axes = axes[:, 0]
     k0 = 0
     if top:
@@ -174,31 +176,50 @@ def main(argv=None):
     written = []
 
     # --- q[i](t) ---------------------------------------------------------------
-    written.append(joint_figure(
-        t, joints, cols, q, stick, f"Joint coordinates q[i] (n = {n})", "q[{i}]",
-        args.outdir / "reference_q.png"))
+    written.append(
+        joint_figure(
+            t, joints, cols, q, stick, f"Joint coordinates q[i] (n = {n})", "q[{i}]", args.outdir / "reference_q.png"
+        )
+    )
 
     # --- eps, eps_joint[i] -------------------------------------------------------
     if "eps" in cols or epsj:
         top = None
         if "eps" in cols:
+
             def top(ax):
                 ax.plot(t, cols["eps"], color="k", lw=1.2)
                 lo, span = padded_limits(cols["eps"])
                 ax.set_ylim(lo - 0.05 * span, lo + 1.05 * span)
                 ax.set_ylabel("eps")
                 ax.grid(True, alpha=0.3)
-        written.append(joint_figure(
-            t, list(epsj), cols, epsj, stick, "eps and eps_joint[i]", "eps_joint[{i}]",
-            args.outdir / "reference_eps.png", top=top))
+
+        written.append(
+            joint_figure(
+                t,
+                list(epsj),
+                cols,
+                epsj,
+                stick,
+                "eps and eps_joint[i]",
+                "eps_joint[{i}]",
+                args.outdir / "reference_eps.png",
+                top=top,
+            )
+        )
 
     # --- stiction chart (c_m-like) --------------------------------------------------
     if stick:
         has_qd = bool(qd)
         fig, axes = plt.subplots(
-            2 if has_qd else 1, 1, sharex=True, squeeze=False, layout="constrained",
+            2 if has_qd else 1,
+            1,
+            sharex=True,
+            squeeze=False,
+            layout="constrained",
             figsize=(10, (3.2 if has_qd else 0) + 0.55 * len(stick) + 1.6),
-            gridspec_kw={"height_ratios": [3.2, 0.55 * len(stick) + 0.4]} if has_qd else None)
+            gridspec_kw={"height_ratios": [3.2, 0.55 * len(stick) + 0.4]} if has_qd else None,
+        )
         axes = axes[:, 0]
         if has_qd:
             ax = axes[0]
@@ -245,8 +266,9 @@ def main(argv=None):
     # --- friction vs normal force --------------------------------------------------
     fj = [i for i in joints if i in ffr or i in nn]
     if fj:
-        fig, axes = plt.subplots(len(fj), 1, sharex=True, squeeze=False,
-                                 figsize=(10, 1.9 * len(fj) + 1.2), layout="constrained")
+        fig, axes = plt.subplots(
+            len(fj), 1, sharex=True, squeeze=False, figsize=(10, 1.9 * len(fj) + 1.2), layout="constrained"
+        )
         for ax, i in zip(axes[:, 0], fj):
             if i in nn:
                 ax.plot(t, cols[nn[i]], color="0.5", lw=1.0, label=nn[i])

@@ -101,8 +101,9 @@ def main(argv=None):
         written.append(path)
 
     # --- joint lag of the flexible joints, each on its own axis -----------------------
-    fig, axes = plt.subplots(len(flex), 1, sharex=True, squeeze=False, figsize=(10, 1.9 * len(flex) + 1.2),
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        len(flex), 1, sharex=True, squeeze=False, figsize=(10, 1.9 * len(flex) + 1.2), layout="constrained"
+    )
     for ax, i in zip(axes[:, 0], flex):
         st = cols[stick[i]] if i in stick else None
         plot_with_stick_bar(ax, t, cols[epsj[i]], st, colors[(i - 1) % len(colors)], epsj[i])
@@ -121,15 +122,24 @@ def main(argv=None):
         ax.set_ylabel("eps [mm]")
         ax.set_xlabel("time [s]")
         ax.grid(True, alpha=0.3)
-        ax.set_title(f"{prefix}: end-point error eps = |x_E(q) - x_E(q*)|, the drives' deflection under gravity "
-                     f"included   (max {np.nanmax(cols['eps']) * 1e3:.4f} mm)", fontsize=10)
+        ax.set_title(
+            f"{prefix}: end-point error eps = |x_E(q) - x_E(q*)|, the drives' deflection under gravity "
+            f"included   (max {np.nanmax(cols['eps']) * 1e3:.4f} mm)",
+            fontsize=10,
+        )
         save(fig, "eps")
 
     # --- stiction chart of the flexible joints ------------------------------------------
     sj = [i for i in flex if i in stick]
     if sj:
-        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(10, 3.2 + 0.55 * len(sj) + 1.6), layout="constrained",
-                                 gridspec_kw={"height_ratios": [3.2, 0.55 * len(sj) + 0.4]})
+        fig, axes = plt.subplots(
+            2,
+            1,
+            sharex=True,
+            figsize=(10, 3.2 + 0.55 * len(sj) + 1.6),
+            layout="constrained",
+            gridspec_kw={"height_ratios": [3.2, 0.55 * len(sj) + 0.4]},
+        )
         ax = axes[0]
         for i in sj:
             if i in qd:
@@ -157,8 +167,14 @@ def main(argv=None):
     load_joints = [int(x) for x in args.loads.split(",") if x.strip()]
     load_joints = [i for i in load_joints if i in q]
     if load_joints:
-        fig, axes = plt.subplots(len(load_joints), 2, sharex=True, squeeze=False,
-                                 figsize=(12, 2.6 * len(load_joints) + 1.0), layout="constrained")
+        fig, axes = plt.subplots(
+            len(load_joints),
+            2,
+            sharex=True,
+            squeeze=False,
+            figsize=(12, 2.6 * len(load_joints) + 1.0),
+            layout="constrained",
+        )
         for row, i in enumerate(load_joints):
             f = [cols.get(f"f[{i},{k}]") for k in (1, 2, 3)]
             n = [cols.get(f"n[{i},{k}]") for k in (1, 2, 3)]
@@ -183,12 +199,19 @@ def main(argv=None):
             ax.grid(True, alpha=0.3)
         for ax in axes[-1]:
             ax.set_xlabel("time [s]")
-        fig.suptitle(f"{prefix}: bearing normal loads and joint reactions (at the reaction point, "
-                     "URDF child link frame: z = joint axis)")
+        fig.suptitle(
+            f"{prefix}: bearing normal loads and joint reactions (at the reaction point, "
+            "URDF child link frame: z = joint axis)"
+        )
         save(fig, "loads")
 
-    summary = {"csv": str(args.csv), "samples": len(t), "t_end": float(t[-1]),
-               "eps_max_m": float(np.nanmax(cols["eps"])) if "eps" in cols else None, "joints": {}}
+    summary = {
+        "csv": str(args.csv),
+        "samples": len(t),
+        "t_end": float(t[-1]),
+        "eps_max_m": float(np.nanmax(cols["eps"])) if "eps" in cols else None,
+        "joints": {},
+    }
     for i in flex:
         segs = stick_segments(t, cols[stick[i]]) if i in stick else []
         summary["joints"][str(i)] = {
@@ -204,13 +227,17 @@ def main(argv=None):
         args.summary.write_text(json.dumps(summary, indent=1), encoding="utf-8")
         written.append(args.summary)
 
-    print(f"plot_urdf_arm: {len(t)} samples, t = [{t[0]:g}, {t[-1]:g}] s, flexible joints {flex}; "
-          f"eps max {summary['eps_max_m']:.3e} m")
+    print(
+        f"plot_urdf_arm: {len(t)} samples, t = [{t[0]:g}, {t[-1]:g}] s, flexible joints {flex}; "
+        f"eps max {summary['eps_max_m']:.3e} m"
+    )
     for i in flex:
         j = summary["joints"][str(i)]
-        print(f"  {label(i, names)}: {j['n_stick_final']:.0f} stiction phases "
-              f"({j['t_stick_final_s']:.3f} s stuck), max |q* - q| {j['lag_max_abs_rad']:.3e} rad, "
-              f"max N_normal {j['N_normal_max_N']:.1f} N, max |F_friction| {j['F_friction_max_abs']:.3f} N m")
+        print(
+            f"  {label(i, names)}: {j['n_stick_final']:.0f} stiction phases "
+            f"({j['t_stick_final_s']:.3f} s stuck), max |q* - q| {j['lag_max_abs_rad']:.3e} rad, "
+            f"max N_normal {j['N_normal_max_N']:.1f} N, max |F_friction| {j['F_friction_max_abs']:.3f} N m"
+        )
     for f in written:
         print(f"  wrote {f}")
     return 0

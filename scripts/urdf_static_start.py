@@ -57,8 +57,11 @@ def gravity_torques(binary, model, q):
         states, out = Path(d) / "states.csv", Path(d) / "tau.csv"
         header = [f"{b}[{i}]" for b in ("q", "qd", "qdd") for i in range(1, n + 1)]
         states.write_text(",".join(header) + "\n" + ",".join(repr(x) for x in list(q) + [0.0] * 2 * n) + "\n")
-        run = subprocess.run([str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
-                             stderr=subprocess.PIPE, text=True)
+        run = subprocess.run(
+            [str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         if run.returncode != 0:
             raise SystemExit(f"urdf_static_start: {binary} failed (exit {run.returncode}): {run.stderr.strip()}")
         with open(out, newline="") as f:

@@ -80,7 +80,11 @@ impl Data {
             inertia: vec![Mat3::zeros(); n],
             // A prismatic joint's rotation is its placement's, for good.
             link_rotation: model.joints.iter().map(|j| j.placement.rotation).collect(),
-            origin_in_joint_frame: model.joints.iter().map(|j| j.placement.rotation.tr_mul(&j.placement.translation)).collect(),
+            origin_in_joint_frame: model
+                .joints
+                .iter()
+                .map(|j| j.placement.rotation.tr_mul(&j.placement.translation))
+                .collect(),
             theta_anchor: model
                 .joints
                 .iter()

@@ -15,4 +15,6 @@ pub mod stepper;
 pub use data::Data;
 pub use error::{ModelError, NonConvergence, StepError};
 pub use model::Model;
-pub use stepper::{DriveInputs, Energy, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, StepStatistics};
+pub use stepper::{
+    DriveInputs, Energy, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, StepStatistics,
+};

@@ -48,4 +48,3 @@ pub fn sin_cos_near(s0: f64, c0: f64, delta: f64) -> (f64, f64) {
     let sin_d = delta * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)));
     (s0 + (s0 * cos_m1 + c0 * sin_d), c0 + (c0 * cos_m1 - s0 * sin_d))
 }
-

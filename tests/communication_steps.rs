@@ -42,7 +42,13 @@ fn run(integrator: IntegratorSettings, interval: f64, duration: f64) -> Run {
     }
     let s = sim.state();
     assert!((s.time - intervals as f64 * interval).abs() <= 1e-9 * duration, "ends at {} s", s.time);
-    Run { max_eps, final_eps: s.end_point_error(), stick_count: s.stick_count.clone(), substeps: s.steps.accepted, intervals }
+    Run {
+        max_eps,
+        final_eps: s.end_point_error(),
+        stick_count: s.stick_count.clone(),
+        substeps: s.steps.accepted,
+        intervals,
+    }
 }
 
 #[test]
@@ -94,7 +100,10 @@ fn error_control_gives_the_fixed_step_answer_at_any_communication_step() {
 fn communication_steps_shorter_than_the_sub_step_take_one_sub_step_each() {
     let run = run(Model::reference_rrpr().integrator, 1e-5, 0.5);
     let per_interval = run.substeps as f64 / run.intervals as f64;
-    eprintln!("10 µs steps: {} sub-steps in {} intervals ({per_interval:.3} per interval)", run.substeps, run.intervals);
+    eprintln!(
+        "10 µs steps: {} sub-steps in {} intervals ({per_interval:.3} per interval)",
+        run.substeps, run.intervals
+    );
     assert!(per_interval < 1.05, "{per_interval} sub-steps per interval");
 }
 

@@ -11,7 +11,9 @@
 mod common;
 
 use common::Rng;
-use stick_slip_manipulator::forces::drive::{acceleration_stiffness, clearance_margin, drive_force, spring_energy, DriveForce};
+use stick_slip_manipulator::forces::drive::{
+    acceleration_stiffness, clearance_margin, drive_force, spring_energy, DriveForce,
+};
 use stick_slip_manipulator::forces::friction::{
     bearing_loads, contact_load, holds_statically, prescribed_friction, slider_normal_load, slip_friction,
     slip_friction_load_derivative, slip_friction_velocity_slope, stuck_friction,
@@ -39,7 +41,14 @@ fn bearing_forces_balance_the_joint_reaction() {
 
 #[test]
 fn bearing_friction_moment_is_eq_3_14() {
-    let geometry = ContactGeometry::Bearings { reaction_point: Vec3::zeros(), l_a: 0.06, l_b: 0.06, d_a: 0.1, d_b: 0.08, d_c: 0.12 };
+    let geometry = ContactGeometry::Bearings {
+        reaction_point: Vec3::zeros(),
+        l_a: 0.06,
+        l_b: 0.06,
+        d_a: 0.1,
+        d_b: 0.08,
+        d_c: 0.12,
+    };
     // Pure radial force through the midpoint: each bearing takes half.
     let load = contact_load(&geometry, &Vec3::new(300.0, 400.0, 0.0), &Vec3::zeros());
     assert!((load.normal - 500.0).abs() < 1e-12);
@@ -159,7 +168,8 @@ fn drive_acceleration_stiffness_is_the_derivative_of_eq_2_1() {
     let (k, h_d, gap) = (2e6, 3e2, 1e-3);
     let (h, beta, gamma) = (2e-5, 0.25, 0.5);
     let (q_star, qd_star, q0, qd0) = (0.01, 0.2, 0.0, 0.05);
-    let at = |dqdd: f64| drive_force(k, h_d, gap, q_star, qd_star, q0 + beta * h * h * dqdd, qd0 + gamma * h * dqdd).force;
+    let at =
+        |dqdd: f64| drive_force(k, h_d, gap, q_star, qd_star, q0 + beta * h * h * dqdd, qd0 + gamma * h * dqdd).force;
     // (2.1) is linear outside the clearance: a large step loses nothing to rounding.
     let step = 100.0;
     let difference = -(at(step) - at(-step)) / (2.0 * step);
@@ -181,20 +191,30 @@ fn friction_of_each_phase() {
     let held = stuck_friction(Some(coefficients), lever, 30.0, 25.0);
     assert_eq!(held.force, 5.0);
     assert!((held.margin - (0.2 * 50.0 - 5.0)).abs() < 1e-12);
-    assert!(stuck_friction(Some(coefficients), lever, 30.0, 19.0).margin < 0.0, "|F^d − F*| = 11 > μ_s L = 10 breaks away");
+    assert!(
+        stuck_friction(Some(coefficients), lever, 30.0, 19.0).margin < 0.0,
+        "|F^d − F*| = 11 > μ_s L = 10 breaks away"
+    );
     for d in [1i8, -1] {
         let slip = slip_friction(Some(&friction), lever, 0.02 * d as f64, d);
         assert!((slip.force - d as f64 * coefficients.kinetic(0.02) * lever).abs() < 1e-12);
         assert!((slip.margin - 0.02).abs() < 1e-15);
     }
-    let frictionless_static = JointFriction { coefficients: FrictionCoefficients { mu_static: 0.0, mu_kinetic: 0.0, stribeck_velocity: 0.0 }, geometry };
+    let frictionless_static = JointFriction {
+        coefficients: FrictionCoefficients { mu_static: 0.0, mu_kinetic: 0.0, stribeck_velocity: 0.0 },
+        geometry,
+    };
     assert_eq!(slip_friction(Some(&frictionless_static), lever, 0.1, 1).margin, f64::INFINITY);
-    assert!(holds_statically(Some(&friction)) && !holds_statically(Some(&frictionless_static)) && !holds_statically(None));
+    assert!(
+        holds_statically(Some(&friction)) && !holds_statically(Some(&frictionless_static)) && !holds_statically(None)
+    );
     assert_eq!(prescribed_friction(Some(coefficients), lever, -0.5), -coefficients.kinetic(-0.5) * lever);
     assert_eq!(prescribed_friction(Some(coefficients), lever, 0.0), 0.0);
     // The velocity slope is dF^f/dq̇ of the slip law.
     let (qd, dv) = (0.013, 1e-7);
-    let slope = (slip_friction(Some(&friction), lever, qd + dv, 1).force - slip_friction(Some(&friction), lever, qd - dv, 1).force) / (2.0 * dv);
+    let slope = (slip_friction(Some(&friction), lever, qd + dv, 1).force
+        - slip_friction(Some(&friction), lever, qd - dv, 1).force)
+        / (2.0 * dv);
     let analytic = slip_friction_velocity_slope(coefficients, lever, qd, 1);
     assert!((slope - analytic).abs() < 1e-6 * analytic.abs(), "{slope} vs {analytic}");
 }
@@ -206,7 +226,14 @@ fn friction_load_derivative_is_the_derivative_of_the_contact_law() {
     let coefficients = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0 };
     let geometries = [
         ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.05 },
-        ContactGeometry::Bearings { reaction_point: Vec3::zeros(), l_a: 0.06, l_b: 0.04, d_a: 0.1, d_b: 0.08, d_c: 0.1 },
+        ContactGeometry::Bearings {
+            reaction_point: Vec3::zeros(),
+            l_a: 0.06,
+            l_b: 0.04,
+            d_a: 0.1,
+            d_b: 0.08,
+            d_c: 0.1,
+        },
     ];
     let (f, n) = (Vec3::new(30.0, -12.0, 7.0), Vec3::new(2.0, 1.5, -0.7));
     let (df, dn) = (Vec3::new(0.3, 0.2, -0.1), Vec3::new(-0.05, 0.02, 0.01));

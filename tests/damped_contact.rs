@@ -98,7 +98,10 @@ fn check(damping: f64, integrator: IntegratorSettings, what: &str) {
     // before it, k·|δ̇_r|·1e-7; within 10 % places the release to 1e-8 s.
     let expected = STIFFNESS * -rate_r * 1e-7;
     assert!(before > 0.0 && before < 1e-4 * peak, "{what}: force before the release {before}");
-    assert!((before - expected).abs() <= 0.1 * expected, "{what}: force before the release {before}, closed form {expected}");
+    assert!(
+        (before - expected).abs() <= 0.1 * expected,
+        "{what}: force before the release {before}, closed form {expected}"
+    );
     assert_eq!(after, 0.0, "{what}: force after the release");
     // Free flight: half-way back through the clearance.
     let back_at_edge = release + delta_r / -rate_r;
@@ -132,7 +135,15 @@ fn a_damped_flank_releases_at_zero_force_with_the_closed_form_restitution() {
     let default = IntegratorSettings::default();
     for damping in [20.0, 200.0, 1000.0] {
         let zeta = damping / (2.0 * (STIFFNESS * MASS).sqrt());
-        check(damping, IntegratorSettings { h_min: 1e-6, h_max: 1e-6, ..default }, &format!("ζ = {zeta:.3}, fixed 1e-6 s"));
-        check(damping, IntegratorSettings { error_tolerance: 1e-6, ..default }, &format!("ζ = {zeta:.3}, error control"));
+        check(
+            damping,
+            IntegratorSettings { h_min: 1e-6, h_max: 1e-6, ..default },
+            &format!("ζ = {zeta:.3}, fixed 1e-6 s"),
+        );
+        check(
+            damping,
+            IntegratorSettings { error_tolerance: 1e-6, ..default },
+            &format!("ζ = {zeta:.3}, error control"),
+        );
     }
 }

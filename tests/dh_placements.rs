@@ -35,7 +35,9 @@ fn dh_rows_become_placements_that_reproduce_the_frames_of_eq_3_2() {
         let n = 1 + seed as usize % 7;
         let (joints, links) = random_dh_chain(n, seed);
         let end = Vec3::new(0.1, -0.2, 0.3);
-        let model = Model::from_dh("dh", &joints, &links, Vec3::new(0.0, 0.0, -9.81), end, IntegratorSettings::default()).unwrap();
+        let model =
+            Model::from_dh("dh", &joints, &links, Vec3::new(0.0, 0.0, -9.81), end, IntegratorSettings::default())
+                .unwrap();
         let mut rng = Rng::new(seed + 100);
         for _ in 0..5 {
             let q: Vec<f64> = (0..n).map(|_| rng.range(-2.0, 2.0)).collect();
@@ -55,7 +57,8 @@ fn dh_rows_become_placements_that_reproduce_the_frames_of_eq_3_2() {
                 worst = worst.max((data.com[i] - point(&b, &links[i].com)).norm());
                 // Its inertia tensor, given in the study's frame i, in frame 0.
                 let r = b.fixed_view::<3, 3>(0, 0);
-                worst = worst.max((data.inertia[i] - r * links[i].inertia * r.transpose()).amax() / links[i].inertia.amax());
+                worst = worst
+                    .max((data.inertia[i] - r * links[i].inertia * r.transpose()).amax() / links[i].inertia.amax());
                 let expected = match joints[i].friction.map(|f| f.geometry) {
                     Some(ContactGeometry::Bearings { reaction_point, .. }) => point(&previous, &reaction_point),
                     Some(ContactGeometry::Slider { centre, .. }) => point(&b, &centre),

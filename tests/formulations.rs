@@ -143,7 +143,8 @@ fn joint_reactions_balance_the_momentum_of_the_subtree() {
             for l in s..=n {
                 let link = &model.links[l - 1];
                 let b = b_derivative(&model, &q, l, &[]);
-                let bd: stick_slip_manipulator::math::Mat4 = (1..=l).map(|j| b_derivative(&model, &q, l, &[j]) * qd[j - 1]).sum();
+                let bd: stick_slip_manipulator::math::Mat4 =
+                    (1..=l).map(|j| b_derivative(&model, &q, l, &[j]) * qd[j - 1]).sum();
                 let mut bdd: stick_slip_manipulator::math::Mat4 =
                     (1..=l).map(|j| b_derivative(&model, &q, l, &[j]) * qdd[j - 1]).sum();
                 for j in 1..=l {

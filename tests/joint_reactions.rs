@@ -23,7 +23,8 @@ fn reactions_of_the_resting_arm_balance_the_weights() {
     assert!(s.is_stuck(0) && s.is_stuck(2), "at rest both flexible joints are held");
     // Centres of mass in frame 0 at q = (0, 0, 0.8, 0), from the reference file's frames:
     // link 1 (0, 0, 0.3); link 2 (0.1, 0, 0.6); link 3 (0.4, 0, 0.6); link 4 (0.85, 0, 0.65).
-    let com = [Vec3::new(0.0, 0.0, 0.3), Vec3::new(0.1, 0.0, 0.6), Vec3::new(0.4, 0.0, 0.6), Vec3::new(0.85, 0.0, 0.65)];
+    let com =
+        [Vec3::new(0.0, 0.0, 0.3), Vec3::new(0.1, 0.0, 0.6), Vec3::new(0.4, 0.0, 0.6), Vec3::new(0.85, 0.0, 0.65)];
     let masses: Vec<f64> = model.links.iter().map(|l| l.mass).collect();
     let weight: f64 = masses.iter().sum::<f64>() * g;
     let p = Vec3::new(0.0, 0.0, 0.06);

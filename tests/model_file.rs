@@ -24,7 +24,8 @@
 // checked by `set_parameter`, and changing them keeps the model's layout.
 
 use stick_slip_manipulator::model::{
-    ContactGeometry, Drive, JointKind, Parameter, Range, Rotor, MAX_JOINTS, REFERENCE_RRPR_MOTOR_TOML, REFERENCE_RRPR_TOML,
+    ContactGeometry, Drive, JointKind, Parameter, Range, Rotor, MAX_JOINTS, REFERENCE_RRPR_MOTOR_TOML,
+    REFERENCE_RRPR_TOML,
 };
 use stick_slip_manipulator::{Model, ModelError, Simulator};
 
@@ -487,7 +488,8 @@ fn assert_ceiling(over: &str, field: &str, value: f64, range: &str, at: &str) {
     let message = e.to_string();
     assert!(message.contains(range), "message does not show the range `{range}`: {message}");
     assert!(message.contains("at most"), "message does not say `at most`: {message}");
-    let model = Model::from_toml_str(at).unwrap_or_else(|e| panic!("the value at the ceiling of `{field}` is refused: {e}"));
+    let model =
+        Model::from_toml_str(at).unwrap_or_else(|e| panic!("the value at the ceiling of `{field}` is refused: {e}"));
     model.validate().unwrap_or_else(|e| panic!("the value at the ceiling of `{field}` does not validate: {e}"));
 }
 
@@ -501,7 +503,13 @@ fn mass_ceiling_is_1e6_kg() {
     assert_eq!(e.to_string(), "`joint[2].link.mass` = 1e300: must be positive and at most 1e6: (0, 1e6]");
     let e = rejected(&edit_joint(2, "mass = 15.0", "mass = -15.0"));
     assert_eq!(e.to_string(), "`joint[2].link.mass` = -15: must be positive and at most 1e6: (0, 1e6]");
-    assert_ceiling(&edit_joint(2, "mass = 15.0", "mass = 1.0000001e6"), "joint[2].link.mass", 1.0000001e6, "(0, 1e6]", &at);
+    assert_ceiling(
+        &edit_joint(2, "mass = 15.0", "mass = 1.0000001e6"),
+        "joint[2].link.mass",
+        1.0000001e6,
+        "(0, 1e6]",
+        &at,
+    );
     // The smallest double above the ceiling.
     let next = f64::from_bits(1e6f64.to_bits() + 1);
     let text = edit_joint(2, "mass = 15.0", &format!("mass = {next:?}"));
@@ -525,7 +533,13 @@ fn damping_ceiling_is_1e9() {
 #[test]
 fn clearance_ceiling_is_1() {
     let at = edit_joint(3, "clearance = 0.0", "clearance = 1.0");
-    assert_ceiling(&edit_joint(3, "clearance = 0.0", "clearance = 2.0"), "joint[3].drive.clearance", 2.0, "[0, 1]", &at);
+    assert_ceiling(
+        &edit_joint(3, "clearance = 0.0", "clearance = 2.0"),
+        "joint[3].drive.clearance",
+        2.0,
+        "[0, 1]",
+        &at,
+    );
 }
 
 #[test]
@@ -595,7 +609,13 @@ fn geometry_ceiling_is_1000() {
     let at = edit_joint(2, "a = 0.0", "a = 1000.0");
     assert_ceiling(&edit_joint(2, "a = 0.0", "a = 1001.0"), "joint[2].a", 1001.0, "[-1000, 1000]", &at);
     let at = edit("end_point = [0.1, 0.0, 0.0]", "end_point = [1000.0, 0.0, 0.0]");
-    assert_ceiling(&edit("end_point = [0.1, 0.0, 0.0]", "end_point = [1.0e4, 0.0, 0.0]"), "end_point[1]", 1e4, "[-1000, 1000]", &at);
+    assert_ceiling(
+        &edit("end_point = [0.1, 0.0, 0.0]", "end_point = [1.0e4, 0.0, 0.0]"),
+        "end_point[1]",
+        1e4,
+        "[-1000, 1000]",
+        &at,
+    );
     let at = edit_joint(4, "com = [0.05, 0.0, -0.05]", "com = [0.05, 0.0, -1000.0]");
     let over = edit_joint(4, "com = [0.05, 0.0, -0.05]", "com = [0.05, 0.0, -1.0e4]");
     assert_ceiling(&over, "joint[4].link.com[3]", -1e4, "[-1000, 1000]", &at);
@@ -742,7 +762,11 @@ fn motor_reference_file_parses_with_every_motor_field() {
 
 #[test]
 fn motor_drive_optional_fields_default_to_zero() {
-    let text = edit_motor_joint(1, MOTOR_1, "drive = { type = \"motor\", k = 2.0e5, gear_ratio = 50.0, rotor_inertia = 1e-4 }");
+    let text = edit_motor_joint(
+        1,
+        MOTOR_1,
+        "drive = { type = \"motor\", k = 2.0e5, gear_ratio = 50.0, rotor_inertia = 1e-4 }",
+    );
     let model = Model::from_toml_str(&text).unwrap();
     let rotor = Rotor { gear_ratio: 50.0, inertia: 1e-4, viscous: 0.0, coulomb: 0.0 };
     assert_eq!(model.joints[0].drive, Drive::Motor { stiffness: 2e5, damping: 0.0, clearance: 0.0, rotor });
@@ -756,7 +780,11 @@ fn motor_drive_optional_fields_default_to_zero() {
     let rotor = Rotor { gear_ratio: 7.5, inertia: 2.0, viscous: 0.25, coulomb: 0.5 };
     assert_eq!(model.joints[0].drive, Drive::Motor { stiffness: 4e4, damping: 3.0, clearance: 1e-3, rotor });
     // A motor drive on a rigid joint of the flexible reference file.
-    let text = edit_joint(2, "drive = { type = \"rigid\" }", "drive = { type = \"motor\", k = 1.0e5, gear_ratio = 80.0, rotor_inertia = 5e-5 }");
+    let text = edit_joint(
+        2,
+        "drive = { type = \"rigid\" }",
+        "drive = { type = \"motor\", k = 1.0e5, gear_ratio = 80.0, rotor_inertia = 5e-5 }",
+    );
     let model = Model::from_toml_str(&text).unwrap();
     assert_eq!(model.motor_joints(), [1]);
     assert_eq!(model.n_coordinates(), 5);
@@ -813,7 +841,8 @@ fn motor_drive_values_are_checked_by_field() {
     let e = rejected(&edit_motor_joint(1, "gear_ratio = 100.0", "gear_ratio = 0.0"));
     assert_eq!(e.to_string(), "`joint[1].drive.gear_ratio` = 0: must be positive and at most 1e6: (0, 1e6]");
     // Zero viscous and Coulomb friction are admissible (a free rotor).
-    let free = edit_motor_joint(1, "motor_viscous = 2.0e-4, motor_coulomb = 0.03", "motor_viscous = 0.0, motor_coulomb = 0.0");
+    let free =
+        edit_motor_joint(1, "motor_viscous = 2.0e-4, motor_coulomb = 0.03", "motor_viscous = 0.0, motor_coulomb = 0.0");
     Model::from_toml_str(&free).unwrap().validate().unwrap();
 }
 
@@ -873,10 +902,7 @@ fn motor_parameters_have_their_names_and_only_the_gear_ratio_is_fixed() {
 #[test]
 fn motor_parameters_exist_on_motor_joints_only() {
     let motor = Model::reference_rrpr_motor();
-    let expected = [
-        (0, [100.0, 3.0e-4, 2.0e-4, 0.03]),
-        (2, [628.3185307179587, 1.2e-4, 1.0e-4, 0.02]),
-    ];
+    let expected = [(0, [100.0, 3.0e-4, 2.0e-4, 0.03]), (2, [628.3185307179587, 1.2e-4, 1.0e-4, 0.02])];
     for (joint, values) in expected {
         for (p, value) in MOTOR_PARAMETERS.into_iter().zip(values) {
             assert!(motor.has_parameter(p, joint), "{p:?} of joint {}", joint + 1);

@@ -83,11 +83,14 @@ fn number_spans_of(text: &str) -> Vec<(usize, usize)> {
             i = text[i..].find('\n').map_or(bytes.len(), |e| i + e);
             continue;
         }
-        let starts = bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric() && bytes[i - 1] != b'_');
+        let starts =
+            bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric() && bytes[i - 1] != b'_');
         if starts {
             let start = if i > 0 && bytes[i - 1] == b'-' { i - 1 } else { i };
             let mut end = i;
-            while end < bytes.len() && (bytes[end].is_ascii_digit() || matches!(bytes[end], b'.' | b'e' | b'E' | b'-' | b'+')) {
+            while end < bytes.len()
+                && (bytes[end].is_ascii_digit() || matches!(bytes[end], b'.' | b'e' | b'E' | b'-' | b'+'))
+            {
                 end += 1;
             }
             spans.push((start, end));
@@ -121,8 +124,13 @@ fn mutate_characters(text: &str, edits: &[(prop::sample::Index, u8, char)]) -> S
 /// `text` with the numbers picked (by index among its numbers) replaced by extremes.
 fn with_extreme_numbers(text: &str, picks: &[(prop::sample::Index, usize)]) -> String {
     let spans = number_spans_of(text);
-    let mut chosen: Vec<(usize, usize, &str)> =
-        picks.iter().map(|(at, e)| { let (s, t) = spans[at.index(spans.len())]; (s, t, EXTREMES[*e]) }).collect();
+    let mut chosen: Vec<(usize, usize, &str)> = picks
+        .iter()
+        .map(|(at, e)| {
+            let (s, t) = spans[at.index(spans.len())];
+            (s, t, EXTREMES[*e])
+        })
+        .collect();
     chosen.sort_by_key(|c| std::cmp::Reverse(c.0));
     chosen.dedup_by_key(|c| c.0);
     let mut text = text.to_string();
@@ -268,7 +276,8 @@ fn a_damped_motor_gear_with_a_tiny_clearance_steps_without_panicking() {
     let zero = [0.0; 4];
     let inputs = DriveInputs { q_star: &zero, qd_star: &zero, qdd_star: &zero };
     let mut sim = Simulator::new(model).unwrap();
-    sim.set_motor_torques(&MotorTorques { tau_m: &zero, tau_m_rate: &[71.757233641977; 4], tau_m_accel: &zero }).unwrap();
+    sim.set_motor_torques(&MotorTorques { tau_m: &zero, tau_m_rate: &[71.757233641977; 4], tau_m_accel: &zero })
+        .unwrap();
     sim.initialize(0.0, &inputs, None).unwrap();
     for _ in 0..3 {
         if sim.advance(&inputs, 1e-3).is_err() {

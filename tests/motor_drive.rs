@@ -335,8 +335,12 @@ fn static_start_holds_the_arm_with_the_reported_torque() {
     assert!(s.drive_force[2].abs() > 10.0, "the slider's gear holds {} N", s.drive_force[2]);
     let hold = s.gear_torque.clone();
     assert!((hold[1] - s.drive_force[2] / (2.0 * std::f64::consts::PI / 0.01)).abs() < 1e-12);
-    sim.set_motor_torques(&MotorTorques { tau_m: &[hold[0], 0.0, hold[1], 0.0], tau_m_rate: &zero, tau_m_accel: &zero })
-        .unwrap();
+    sim.set_motor_torques(&MotorTorques {
+        tau_m: &[hold[0], 0.0, hold[1], 0.0],
+        tau_m_rate: &zero,
+        tau_m_accel: &zero,
+    })
+    .unwrap();
     let mut moved: f64 = 0.0;
     for _ in 0..200 {
         sim.advance(&inputs, 1e-3).unwrap();

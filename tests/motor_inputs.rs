@@ -140,10 +140,18 @@ fn out_of_range_torques_are_refused_with_the_range_and_change_nothing() {
             let e = sim.set_motor_torques(&call_with(field, &bad)).expect_err("an out-of-range torque is refused");
             assert_eq!(
                 e,
-                StepError::InputOutOfRange { field: name, joint: joint + 1, value, range: expected_ranges[field].to_string() }
+                StepError::InputOutOfRange {
+                    field: name,
+                    joint: joint + 1,
+                    value,
+                    range: expected_ranges[field].to_string()
+                }
             );
             let message = e.to_string();
-            assert!(message.contains(&format!("`{name}[{}]`", joint + 1)) && message.contains(expected_ranges[field]), "{message}");
+            assert!(
+                message.contains(&format!("`{name}[{}]`", joint + 1)) && message.contains(expected_ranges[field]),
+                "{message}"
+            );
             assert_nothing_changed(sim, &format!("{name}[{}] = {value:e}", joint + 1));
         }
         // The closed bounds are admissible (not stepped: ±1e12 N·m/s² is not a motion).
@@ -219,6 +227,9 @@ fn torques_set_once_follow_their_polynomial_across_intervals() {
         seen.push((t, sim.state().motor_torque[0], expected));
     }
     for (t, got, expected) in &seen {
-        assert!((got - expected).abs() < 1e-12, "tau_m[1] at t = {t} s is {got}, the polynomial gives {expected}: {seen:?}");
+        assert!(
+            (got - expected).abs() < 1e-12,
+            "tau_m[1] at t = {t} s is {got}, the polynomial gives {expected}: {seen:?}"
+        );
     }
 }

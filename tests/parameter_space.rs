@@ -258,6 +258,14 @@ fn default_error_control_gives_the_converged_answer_across_the_parameter_space()
     );
     assert!(failures.is_empty(), "{} of {n} variants failed:\n{}", failures.len(), failures.join("\n"));
     // A sample whose fixed answers are never converged would check nothing.
-    assert!(2 * (within + flagged) >= outcomes.len(), "only {} of {n} variants have a converged fixed answer", within + flagged);
-    assert!(4 * within >= 3 * (within + flagged), "only {within} of {} converged variants within the bands", within + flagged);
+    assert!(
+        2 * (within + flagged) >= outcomes.len(),
+        "only {} of {n} variants have a converged fixed answer",
+        within + flagged
+    );
+    assert!(
+        4 * within >= 3 * (within + flagged),
+        "only {within} of {} converged variants within the bands",
+        within + flagged
+    );
 }

@@ -89,8 +89,12 @@ fn average_acceleration_is_second_order_and_fox_goodwin_more_accurate_in_phase()
     assert_eq!(average, 0.25);
     let fox_goodwin = 1.0 / 12.0;
     let fine = reference_run_with(2e-6, average);
-    let deviations: Vec<f64> = [2e-4, 1e-4, 5e-5].iter().map(|&h| eps_deviation(&reference_run_with(h, average), &fine)).collect();
-    eprintln!("β = 1/4: max |Δε| at h = 2e-4, 1e-4, 5e-5 s: {:.3e}, {:.3e}, {:.3e} m", deviations[0], deviations[1], deviations[2]);
+    let deviations: Vec<f64> =
+        [2e-4, 1e-4, 5e-5].iter().map(|&h| eps_deviation(&reference_run_with(h, average), &fine)).collect();
+    eprintln!(
+        "β = 1/4: max |Δε| at h = 2e-4, 1e-4, 5e-5 s: {:.3e}, {:.3e}, {:.3e} m",
+        deviations[0], deviations[1], deviations[2]
+    );
     for pair in deviations.windows(2) {
         let ratio = pair[0] / pair[1];
         assert!((3.8..=4.2).contains(&ratio), "halving h divided the deviation by {ratio}, not 4");

@@ -95,7 +95,12 @@ fn stick_slip_cycle_matches_closed_form(name: &str, integrator: IntegratorSettin
         worst = worst.max(rel(slip_time, slip)).max(rel(b.2, f_s)).max(rel(s.2, 2.0 * f_k - f_s));
         assert!(rel(slip_time, slip) < 1e-6, "{name}: slip {slip_time} s vs closed form {slip} s");
         assert!(rel(b.2, f_s) < 1e-6, "{name}: spring force at breakaway {} vs F_s {f_s}", b.2);
-        assert!(rel(s.2, 2.0 * f_k - f_s) < 1e-6, "{name}: spring force at stop {} vs 2F_k − F_s {}", s.2, 2.0 * f_k - f_s);
+        assert!(
+            rel(s.2, 2.0 * f_k - f_s) < 1e-6,
+            "{name}: spring force at stop {} vs 2F_k − F_s {}",
+            s.2,
+            2.0 * f_k - f_s
+        );
     }
     for (s, b) in stops.iter().zip(breakaways.iter().skip(1)) {
         let stick_time = b.0 - s.0;
@@ -103,7 +108,10 @@ fn stick_slip_cycle_matches_closed_form(name: &str, integrator: IntegratorSettin
         assert!(rel(stick_time, stick) < 1e-6, "{name}: stick {stick_time} s vs closed form {stick} s");
     }
     let steps = sim.state().steps;
-    eprintln!("{name}: largest relative deviation from the closed form {worst:.2e}, {} sub-steps, {} rejected", steps.accepted, steps.rejected);
+    eprintln!(
+        "{name}: largest relative deviation from the closed form {worst:.2e}, {} sub-steps, {} rejected",
+        steps.accepted, steps.rejected
+    );
 }
 
 #[test]
@@ -136,13 +144,8 @@ fn disturbed_steady_sliding(v: f64, h: f64, friction: FrictionCoefficients, dura
     // Spring force equals the kinetic friction at v; damping force is zero.
     let q0 = -friction.kinetic(v) * m * G / k;
     let disturbance = 1e-4 * v;
-    let log = drive_at_constant_speed(
-        &mut sim,
-        v,
-        0.0,
-        duration,
-        Some(InitialState { q: &[q0], qd: &[v + disturbance] }),
-    );
+    let log =
+        drive_at_constant_speed(&mut sim, v, 0.0, duration, Some(InitialState { q: &[q0], qd: &[v + disturbance] }));
     let stops = log.iter().filter(|e| e.1 == Phase::Stuck).count();
     // Amplitude of the velocity deviation over the last 10 ms.
     let mut amplitude: f64 = 0.0;

@@ -334,7 +334,8 @@ fn every_source_loads_and_steps_unmutated() {
 
 /// Values that are not a number (or not the right count of numbers) for any
 /// numeric attribute.
-const NOT_NUMBERS: [&str; 12] = ["NaN", "nan", "inf", "-inf", "1e400", "", "garbage", "1 2 3 4", "0x10", "1,5", "&amp;", "  "];
+const NOT_NUMBERS: [&str; 12] =
+    ["NaN", "nan", "inf", "-inf", "1e400", "", "garbage", "1 2 3 4", "0x10", "1,5", "&amp;", "  "];
 
 /// True when the attribute value at `start` belongs to an element the URDF
 /// reader reads numbers from: `<origin>`, `<mass>`, `<inertia>`, `<axis>`,
@@ -354,7 +355,11 @@ fn read_by_the_reader(text: &str, start: usize) -> bool {
     let last = |t: &str| before[..tag_at].rfind(t).map_or(0, |i| i + 1);
     let opened = ["<inertial", "<joint ", "<visual", "<collision", "<gazebo", "<transmission"];
     let innermost = opened.iter().max_by_key(|t| last(t)).unwrap();
-    let closed = ["</inertial", "</joint>", "</visual", "</collision", "</gazebo", "</transmission"].iter().map(|t| last(t)).max().unwrap();
+    let closed = ["</inertial", "</joint>", "</visual", "</collision", "</gazebo", "</transmission"]
+        .iter()
+        .map(|t| last(t))
+        .max()
+        .unwrap();
     matches!(*innermost, "<inertial" | "<joint ") && last(innermost) > closed
 }
 
@@ -524,4 +529,3 @@ fn mutations_change_the_text() {
         assert_ne!(mutate(s.urdf, kind, 1234, 3), s.urdf, "mutation {kind} changed nothing");
     }
 }
-

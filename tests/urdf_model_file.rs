@@ -183,7 +183,10 @@ fn bearings_on_a_prismatic_joint_are_refused() {
     let e = rejected(reference(&with_entry("j3", &body)));
     assert_invalid(&e, "joints.j3.bearings", &["belongs to revolute joints", "prismatic", "`slider`"]);
     // Geometry without coefficients is checked the same way.
-    let e = rejected(reference(&with_entry("j3", "bearings = { reaction_point = [0.0, 0.0, 0.0], l_a = 0.06, l_b = 0.06, d_a = 0.1, d_b = 0.1, d_c = 0.1 }")));
+    let e = rejected(reference(&with_entry(
+        "j3",
+        "bearings = { reaction_point = [0.0, 0.0, 0.0], l_a = 0.06, l_b = 0.06, d_a = 0.1, d_b = 0.1, d_c = 0.1 }",
+    )));
     assert_invalid(&e, "joints.j3.bearings", &["belongs to revolute joints"]);
 }
 
@@ -205,7 +208,9 @@ fn bearings_and_slider_together_are_refused() {
 fn bearing_reference_point_off_the_axis_is_refused_with_the_axis_and_the_distance() {
     // j1's axis is +y of its joint frame: a point on z (where a DH file puts
     // it) is off the axis, and so is one 1 cm beside it.
-    for (point, off) in [("[0.0, 0.0, 0.1]", "1.000e-1 m"), ("[0.01, -0.54, 0.0]", "1.000e-2 m"), ("[0.0, -0.54, 1e-9]", "1.000e-9 m")] {
+    for (point, off) in
+        [("[0.0, 0.0, 0.1]", "1.000e-1 m"), ("[0.01, -0.54, 0.0]", "1.000e-2 m"), ("[0.0, -0.54, 1e-9]", "1.000e-9 m")]
+    {
         let body = format!("{FLEXIBLE}\n{FRICTION}\n{}", J1_BEARINGS.replace("[0.0, -0.54, 0.0]", point));
         let e = rejected(reference(&with_entry("j1", &body)));
         assert_invalid(&e, "joints.j1.bearings.reaction_point", &["must lie on the joint axis [0, 1, 0]", off]);
@@ -253,11 +258,9 @@ fn urdf_together_with_dh_joint_rows_is_refused() {
 #[test]
 fn urdf_keys_in_a_dh_file_are_refused() {
     let dh = stick_slip_manipulator::model::REFERENCE_RRPR_TOML;
-    for (key, line) in [
-        ("base_link", "base_link = \"base\"\n"),
-        ("tip_link", "tip_link = \"tool\"\n"),
-        ("joints", "joints = {}\n"),
-    ] {
+    for (key, line) in
+        [("base_link", "base_link = \"base\"\n"), ("tip_link", "tip_link = \"tool\"\n"), ("joints", "joints = {}\n")]
+    {
         let e = rejected(Model::from_toml_str(&format!("{line}{dh}")));
         assert_invalid(&e, key, &["belongs to a URDF model", "this file has no `urdf`"]);
     }
@@ -355,7 +358,10 @@ fn integrator_settings_of_a_urdf_model_are_validated() {
 fn out_of_range_joint_entry_values_are_refused_by_field() {
     let e = rejected(reference(&with_section("j2", r#"drive = { type = "flexible", k = -1.0 }"#)));
     assert!(matches!(&e, ModelError::InvalidParameter { field, .. } if field == "joint[2].drive.k"), "{e:?}");
-    let e = rejected(reference(&with_entry("j1", &format!("{FLEXIBLE}\n{}\n{J1_BEARINGS}", FRICTION.replace("mu_s = 0.2", "mu_s = 0.1")))));
+    let e = rejected(reference(&with_entry(
+        "j1",
+        &format!("{FLEXIBLE}\n{}\n{J1_BEARINGS}", FRICTION.replace("mu_s = 0.2", "mu_s = 0.1")),
+    )));
     assert!(matches!(&e, ModelError::InvalidParameter { field, .. } if field == "joint[1].friction.mu_s"), "{e:?}");
     let e = rejected(reference(&edit(REFERENCE_TOML, "end_point = [0.0, 0.0, 0.0]", "end_point = [0.0, 0.0, nan]")));
     assert!(matches!(&e, ModelError::InvalidParameter { field, .. } if field.starts_with("end_point")), "{e:?}");
@@ -369,7 +375,8 @@ fn out_of_range_joint_entry_values_are_refused_by_field() {
 
 #[test]
 fn drive_only_entry_is_a_frictionless_flexible_joint() {
-    let m = reference(&with_section("j2", r#"drive = { type = "flexible", k = 2.0e5, h = 3.0, clearance = 1e-4 }"#)).unwrap();
+    let m = reference(&with_section("j2", r#"drive = { type = "flexible", k = 2.0e5, h = 3.0, clearance = 1e-4 }"#))
+        .unwrap();
     assert_eq!(m.joints[1].drive, Drive::Flexible { stiffness: 2.0e5, damping: 3.0, clearance: 1e-4 });
     assert!(m.joints[1].friction.is_none());
     // Defaults of a flexible drive: no damping, no clearance.
@@ -387,7 +394,10 @@ fn drive_only_entry_is_a_frictionless_flexible_joint() {
 fn geometry_without_coefficients_is_a_frictionless_joint_with_its_geometry() {
     let m = reference(&with_entry("j1", &format!("{FLEXIBLE}\n{J1_BEARINGS}"))).unwrap();
     let f = m.joints[0].friction.expect("the geometry is kept");
-    assert_eq!((f.coefficients.mu_kinetic, f.coefficients.mu_static, f.coefficients.stribeck_velocity), (0.0, 0.0, 0.0));
+    assert_eq!(
+        (f.coefficients.mu_kinetic, f.coefficients.mu_static, f.coefficients.stribeck_velocity),
+        (0.0, 0.0, 0.0)
+    );
     match f.geometry {
         // On the axis, at 0.54 m below the joint origin along −y: −0.54 along the engine's z.
         ContactGeometry::Bearings { reaction_point, l_a, d_c, .. } => {
@@ -422,7 +432,9 @@ fn gravity_and_end_point_default_to_minus_z_and_the_tip_link_origin() {
     let d = end_point(&moved, &data) - end_point(&with_point, &other);
     assert!((d.norm() - 0.1).abs() < 1e-12, "the tool frame is 0.1 m from link_4's origin: {d:?}");
     // The name defaults to the URDF's file stem; the integrator to the defaults.
-    let bare = reference(&format!("urdf = \"{REFERENCE_URDF_NAME}\"\nbase_link = \"base\"\ntip_link = \"gripper_tip\"\n")).unwrap();
+    let bare =
+        reference(&format!("urdf = \"{REFERENCE_URDF_NAME}\"\nbase_link = \"base\"\ntip_link = \"gripper_tip\"\n"))
+            .unwrap();
     assert_eq!(bare.name, "reference_rrpr");
     assert_eq!(bare.integrator, stick_slip_manipulator::model::IntegratorSettings::default());
     assert_eq!(bare.gravity, Vec3::new(0.0, 0.0, -9.81));
@@ -446,7 +458,8 @@ fn xarm6_triangle_inequality_warnings_reach_model_warnings() {
 
 #[test]
 fn joint_names_are_the_urdf_names_in_chain_order() {
-    let names = |m: &Model| m.joint_names.iter().map(|n| n.clone().expect("a URDF joint has a name")).collect::<Vec<_>>();
+    let names =
+        |m: &Model| m.joint_names.iter().map(|n| n.clone().expect("a URDF joint has a name")).collect::<Vec<_>>();
     let iiwa = Model::from_file(format!("{MODELS}/kuka_iiwa/kuka_iiwa.toml")).unwrap();
     assert_eq!(names(&iiwa), (1..=7).map(|i| format!("lbr_iiwa_joint_{i}")).collect::<Vec<_>>());
     let xarm = Model::from_file(format!("{MODELS}/xarm6/xarm6.toml")).unwrap();
@@ -483,7 +496,10 @@ fn assert_invalid_parameter(e: &ModelError, want_field: &str, want_value: f64, r
     match e {
         ModelError::InvalidParameter { field, value, reason } => {
             assert_eq!(field, want_field, "wrong field in: {e}");
-            assert!(value.to_bits() == want_value.to_bits() || (value.is_nan() && want_value.is_nan()), "{value} in: {e}");
+            assert!(
+                value.to_bits() == want_value.to_bits() || (value.is_nan() && want_value.is_nan()),
+                "{value} in: {e}"
+            );
             assert!(reason.contains(reason_has), "the reason does not say `{reason_has}`: {e}");
             assert!(e.to_string().contains(want_field), "the message does not name `{want_field}`: {e}");
         }
@@ -525,13 +541,15 @@ fn motor_drive_entry_on_a_kuka_iiwa_joint_is_a_motor_drive() {
 #[test]
 fn reference_urdf_arm_with_motor_entries_has_the_drives_of_the_dh_motor_file_and_steps() {
     let dh = Model::reference_rrpr_motor();
-    let drive = |j: usize| match dh.joints[j].drive {
+    let drive = |j: usize| {
+        match dh.joints[j].drive {
         Drive::Motor { stiffness, damping, clearance, rotor } => format!(
             "drive = {{ type = \"motor\", k = {stiffness:?}, h = {damping:?}, clearance = {clearance:?}, gear_ratio = {:?}, \
              rotor_inertia = {:?}, motor_viscous = {:?}, motor_coulomb = {:?} }}",
             rotor.gear_ratio, rotor.inertia, rotor.viscous, rotor.coulomb
         ),
         other => panic!("{other:?}"),
+    }
     };
     let toml = with_entry("j1", &format!("{}\n{FRICTION}\n{J1_BEARINGS}", drive(0)));
     let toml = {
@@ -550,7 +568,8 @@ fn reference_urdf_arm_with_motor_entries_has_the_drives_of_the_dh_motor_file_and
     let mut sim = Simulator::new(m).unwrap();
     let zero = [0.0; 4];
     let at_rest = DriveInputs { q_star: &zero, qd_star: &zero, qdd_star: &zero };
-    sim.set_motor_torques(&MotorTorques { tau_m: &[0.5, 0.0, 0.0, 0.0], tau_m_rate: &zero, tau_m_accel: &zero }).unwrap();
+    sim.set_motor_torques(&MotorTorques { tau_m: &[0.5, 0.0, 0.0, 0.0], tau_m_rate: &zero, tau_m_accel: &zero })
+        .unwrap();
     sim.initialize(0.0, &at_rest, None).unwrap();
     for _ in 0..5 {
         sim.advance(&at_rest, 1e-3).unwrap();
@@ -565,10 +584,16 @@ fn motor_drive_entry_syntax_errors_name_the_key_and_the_line() {
         (r#"drive = { type = "motor", k = 7.8e4, rotor_inertia = 1e-4 }"#, "missing field `gear_ratio`"),
         (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 100.0 }"#, "missing field `rotor_inertia`"),
         (r#"drive = { type = "motor", gear_ratio = 100.0, rotor_inertia = 1e-4 }"#, "missing field `k`"),
-        (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 100.0, rotor_inertial = 1e-4 }"#, "unknown field `rotor_inertial`"),
+        (
+            r#"drive = { type = "motor", k = 7.8e4, gear_ratio = 100.0, rotor_inertial = 1e-4 }"#,
+            "unknown field `rotor_inertial`",
+        ),
         (r#"drive = { type = "motr", k = 7.8e4, gear_ratio = 100.0, rotor_inertia = 1e-4 }"#, "unknown variant `motr`"),
         (r#"drive = { type = "flexible", k = 7.8e4, gear_ratio = 100.0 }"#, "unknown field `gear_ratio`"),
-        (r#"drive = { type = "motor", k = 7.8e4, gear_ratio = true, rotor_inertia = 1e-4 }"#, "invalid type: boolean `true`, expected f64"),
+        (
+            r#"drive = { type = "motor", k = 7.8e4, gear_ratio = true, rotor_inertia = 1e-4 }"#,
+            "invalid type: boolean `true`, expected f64",
+        ),
     ];
     for (drive, says) in cases {
         let e = rejected(kuka(&kuka_j2(drive)));
@@ -841,7 +866,8 @@ drive = {{ type = "flexible", k = 3.0e3 }}
 fn urdf_x_and_minus_z_axes_give_the_inverse_dynamics_of_the_same_arm_with_z_axes() {
     let z_axes = [Z; 4];
     let other = [X, MINUS_Z, X, MINUS_Z];
-    let model = |w: [AxisWriting; 4]| load(&test_arm_toml(w), "axes.urdf", &test_arm_urdf(w)).unwrap_or_else(|e| panic!("{e}"));
+    let model =
+        |w: [AxisWriting; 4]| load(&test_arm_toml(w), "axes.urdf", &test_arm_urdf(w)).unwrap_or_else(|e| panic!("{e}"));
     let (a, b) = (model(z_axes), model(other));
     assert!(a.warnings.is_empty() && b.warnings.is_empty(), "{:?} {:?}", a.warnings, b.warnings);
     assert!(a.joints.iter().all(|j| j.reported_axes == Mat3::identity()));

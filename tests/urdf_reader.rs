@@ -39,23 +39,14 @@ fn rpy(r: f64, p: f64, y: f64) -> Mat3 {
 
 fn assert_mat(what: &str, got: &Mat3, expected: &Mat3) {
     let d = (got - expected).amax();
-    assert!(
-        d <= TOL,
-        "{what}: got {got}, expected {expected} (max deviation {d:e})"
-    );
+    assert!(d <= TOL, "{what}: got {got}, expected {expected} (max deviation {d:e})");
 }
 fn assert_vec(what: &str, got: &Vec3, expected: &Vec3) {
     let d = (got - expected).amax();
-    assert!(
-        d <= TOL,
-        "{what}: got {got}, expected {expected} (max deviation {d:e})"
-    );
+    assert!(d <= TOL, "{what}: got {got}, expected {expected} (max deviation {d:e})");
 }
 fn assert_num(what: &str, got: f64, expected: f64) {
-    assert!(
-        (got - expected).abs() <= TOL,
-        "{what}: got {got}, expected {expected}"
-    );
+    assert!((got - expected).abs() <= TOL, "{what}: got {got}, expected {expected}");
 }
 
 /// The parallel-axis term of a point mass m at offset d from the reference
@@ -86,9 +77,7 @@ fn refusal(xml: &str, base: Option<&str>, tip: Option<&str>) -> (String, String)
         Ok(chain) => panic!("expected a refusal, read {} joints", chain.joints.len()),
         Err(e @ ModelError::Urdf { .. }) => {
             let text = e.to_string();
-            let ModelError::Urdf { element, reason } = e else {
-                unreachable!()
-            };
+            let ModelError::Urdf { element, reason } = e else { unreachable!() };
             assert_eq!(text, format!("URDF {element}: {reason}"));
             (element, reason)
         }
@@ -100,22 +89,14 @@ fn assert_refused(xml: &str, element: &str, reason_part: &str) {
     assert_refused_chain(xml, None, None, element, reason_part);
 }
 
-fn assert_refused_chain(
-    xml: &str,
-    base: Option<&str>,
-    tip: Option<&str>,
-    element: &str,
-    reason_part: &str,
-) {
+fn assert_refused_chain(xml: &str, base: Option<&str>, tip: Option<&str>, element: &str, reason_part: &str) {
     let (e, r) = refusal(xml, base, tip);
     assert_eq!(e, element, "element of the refusal (reason: {r})");
-    assert!(
-        r.contains(reason_part),
-        "reason `{r}` should contain `{reason_part}`"
-    );
+    assert!(r.contains(reason_part), "reason `{r}` should contain `{reason_part}`");
 }
 
-const BOX: &str = r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>"#;
+const BOX: &str =
+    r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>"#;
 
 /// A robot of the given links (name, inertial XML) and joints
 /// (name, type, parent, child, extra XML).
@@ -136,19 +117,13 @@ fn robot(links: &[(&str, &str)], joints: &[(&str, &str, &str, &str, &str)]) -> S
 fn two_joints(extra_j1: &str) -> String {
     robot(
         &[("base", ""), ("l1", BOX), ("l2", BOX)],
-        &[
-            ("j1", "revolute", "base", "l1", extra_j1),
-            ("j2", "revolute", "l1", "l2", ""),
-        ],
+        &[("j1", "revolute", "base", "l1", extra_j1), ("j2", "revolute", "l1", "l2", "")],
     )
 }
 
 /// base —j (revolute)→ l, `l` with the given inertial XML.
 fn one_link(inertial: &str) -> String {
-    robot(
-        &[("base", ""), ("l", inertial)],
-        &[("j", "revolute", "base", "l", "")],
-    )
+    robot(&[("base", ""), ("l", inertial)], &[("j", "revolute", "base", "l", "")])
 }
 
 fn inertial_xml(mass: &str, inertia: [&str; 6]) -> String {
@@ -169,14 +144,7 @@ fn arm_has_the_moving_joints_of_the_chain_in_order() {
     let names: Vec<&str> = c.joints.iter().map(|j| j.name.as_str()).collect();
     assert_eq!(names, ["joint1", "joint2", "joint3"]);
     let kinds: Vec<JointKind> = c.joints.iter().map(|j| j.kind).collect();
-    assert_eq!(
-        kinds,
-        [
-            JointKind::Revolute,
-            JointKind::Prismatic,
-            JointKind::Revolute
-        ]
-    );
+    assert_eq!(kinds, [JointKind::Revolute, JointKind::Prismatic, JointKind::Revolute]);
     assert_eq!(c.bodies.len(), 3);
 }
 
@@ -185,16 +153,8 @@ fn first_joint_is_placed_in_base_link_frame_through_the_fixed_joints_before_it()
     let c = arm();
     // mount_joint (xyz 0.1 0.2 0.3, yaw 90°) then joint1's origin (xyz 0 0 0.5, rpy 0.3 -0.2 0.1).
     let j = &c.joints[0];
-    assert_mat(
-        "joint1 rotation",
-        &j.rotation,
-        &(rz(FRAC_PI_2) * rpy(0.3, -0.2, 0.1)),
-    );
-    assert_vec(
-        "joint1 translation",
-        &j.translation,
-        &Vec3::new(0.1, 0.2, 0.8),
-    );
+    assert_mat("joint1 rotation", &j.rotation, &(rz(FRAC_PI_2) * rpy(0.3, -0.2, 0.1)));
+    assert_vec("joint1 translation", &j.translation, &Vec3::new(0.1, 0.2, 0.8));
     assert_vec("joint1 axis", &j.axis, &Vec3::new(0.0, 0.0, 1.0));
 }
 
@@ -222,16 +182,8 @@ fn prismatic_joint_after_a_moving_joint_is_placed_in_the_previous_body() {
     let c = arm();
     let j = &c.joints[1];
     assert_mat("joint2 rotation", &j.rotation, &rx(FRAC_PI_2));
-    assert_vec(
-        "joint2 translation",
-        &j.translation,
-        &Vec3::new(0.4, 0.0, 0.0),
-    );
-    assert_vec(
-        "joint2 axis (0 0 2 normalized)",
-        &j.axis,
-        &Vec3::new(0.0, 0.0, 1.0),
-    );
+    assert_vec("joint2 translation", &j.translation, &Vec3::new(0.4, 0.0, 0.0));
+    assert_vec("joint2 axis (0 0 2 normalized)", &j.axis, &Vec3::new(0.0, 0.0, 1.0));
 }
 
 #[test]
@@ -245,11 +197,7 @@ fn fixed_joint_between_moving_joints_merges_mass_com_and_inertia() {
     let (m1, c1, i1) = (1.5, [0.1, 0.0, 0.0], diag(0.015, 0.02, 0.03));
     let (m2, c2, i2) = (0.5, [0.22, 0.05, 0.0], diag(0.002, 0.0015, 0.0015));
     let m = m1 + m2;
-    let com = [
-        (m1 * c1[0] + m2 * c2[0]) / m,
-        (m1 * c1[1] + m2 * c2[1]) / m,
-        0.0,
-    ];
+    let com = [(m1 * c1[0] + m2 * c2[0]) / m, (m1 * c1[1] + m2 * c2[1]) / m, 0.0];
     assert_num("merged mass", b.mass, 2.0);
     assert_vec("merged com", &b.com, &Vec3::new(0.13, 0.0125, 0.0));
     assert_vec("merged com (formula)", &b.com, &Vec3::from(com));
@@ -274,16 +222,8 @@ fn joint_after_a_fixed_joint_is_placed_through_it() {
     // flange_joint (xyz 0.2 0.05 0, pitch 90°) then joint3 (xyz 0 0 0.1, yaw 0.5).
     let j = &c.joints[2];
     assert_mat("joint3 rotation", &j.rotation, &(ry(FRAC_PI_2) * rz(0.5)));
-    assert_vec(
-        "joint3 translation",
-        &j.translation,
-        &Vec3::new(0.3, 0.05, 0.0),
-    );
-    assert_vec(
-        "joint3 axis (default 1 0 0)",
-        &j.axis,
-        &Vec3::new(1.0, 0.0, 0.0),
-    );
+    assert_vec("joint3 translation", &j.translation, &Vec3::new(0.3, 0.05, 0.0));
+    assert_vec("joint3 axis (default 1 0 0)", &j.axis, &Vec3::new(1.0, 0.0, 0.0));
 }
 
 #[test]
@@ -319,11 +259,7 @@ fn tip_placement_composes_the_fixed_joints_after_the_last_moving_joint() {
     let c = arm();
     // tool_joint (xyz 0 0 0.15, roll 180°) then tcp_joint (xyz 0 0 0.05).
     assert_mat("tip rotation", &c.tip_rotation, &rx(PI));
-    assert_vec(
-        "tip translation",
-        &c.tip_translation,
-        &Vec3::new(0.0, 0.0, 0.1),
-    );
+    assert_vec("tip translation", &c.tip_translation, &Vec3::new(0.0, 0.0, 0.1));
 }
 
 #[test]
@@ -342,19 +278,9 @@ fn tip_at_a_moving_joints_child_is_that_body_frame() {
 #[test]
 fn limits_are_returned_as_given() {
     let c = arm();
-    let full = UrdfLimit {
-        lower: Some(-2.0),
-        upper: Some(2.0),
-        velocity: Some(1.5),
-        effort: Some(100.0),
-    };
+    let full = UrdfLimit { lower: Some(-2.0), upper: Some(2.0), velocity: Some(1.5), effort: Some(100.0) };
     assert_eq!(c.joints[0].limit, Some(full));
-    let partial = UrdfLimit {
-        lower: Some(0.0),
-        upper: Some(0.3),
-        velocity: None,
-        effort: None,
-    };
+    let partial = UrdfLimit { lower: Some(0.0), upper: Some(0.3), velocity: None, effort: None };
     assert_eq!(c.joints[1].limit, Some(partial));
     assert_eq!(c.joints[2].limit, None);
 }
@@ -366,23 +292,11 @@ fn base_link_option_starts_the_chain_at_that_link() {
     assert_eq!(c.joints.len(), 2);
     assert_eq!(c.joints[0].name, "joint2");
     assert_mat("joint2 rotation", &c.joints[0].rotation, &rx(FRAC_PI_2));
-    assert_vec(
-        "joint2 translation",
-        &c.joints[0].translation,
-        &Vec3::new(0.4, 0.0, 0.0),
-    );
+    assert_vec("joint2 translation", &c.joints[0].translation, &Vec3::new(0.4, 0.0, 0.0));
     // From mount: joint1 placed by its own origin only.
     let c = read_urdf(&file("arm.urdf"), Some("mount"), Some("tcp")).unwrap();
-    assert_mat(
-        "joint1 rotation",
-        &c.joints[0].rotation,
-        &rpy(0.3, -0.2, 0.1),
-    );
-    assert_vec(
-        "joint1 translation",
-        &c.joints[0].translation,
-        &Vec3::new(0.0, 0.0, 0.5),
-    );
+    assert_mat("joint1 rotation", &c.joints[0].rotation, &rpy(0.3, -0.2, 0.1));
+    assert_vec("joint1 translation", &c.joints[0].translation, &Vec3::new(0.0, 0.0, 0.5));
 }
 
 #[test]
@@ -404,12 +318,7 @@ fn mimic_off_the_chain_is_lumped_but_on_the_chain_refused() {
 
 #[test]
 fn rpy_yaw_of_90_degrees_maps_x_to_y() {
-    let c = read_urdf(
-        &two_joints(r#"<origin rpy="0 0 1.5707963267948966"/>"#),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&two_joints(r#"<origin rpy="0 0 1.5707963267948966"/>"#), None, None).unwrap();
     let r = c.joints[0].rotation;
     assert_vec("R x", &(r * Vec3::x()), &Vec3::y());
     assert_vec("R y", &(r * Vec3::y()), &-Vec3::x());
@@ -419,19 +328,10 @@ fn rpy_yaw_of_90_degrees_maps_x_to_y() {
 #[test]
 fn rpy_is_rz_yaw_times_ry_pitch_times_rx_roll() {
     let c = read_urdf(&two_joints(r#"<origin rpy="0.4 -1.1 2.5"/>"#), None, None).unwrap();
-    assert_mat(
-        "rotation",
-        &c.joints[0].rotation,
-        &(rz(2.5) * ry(-1.1) * rx(0.4)),
-    );
+    assert_mat("rotation", &c.joints[0].rotation, &(rz(2.5) * ry(-1.1) * rx(0.4)));
     // Roll 90° then pitch 90° about the fixed axes: y ↦ z ↦ x; the other
     // order of the product differs.
-    let c = read_urdf(
-        &two_joints(r#"<origin rpy="1.5707963267948966 1.5707963267948966 0"/>"#),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&two_joints(r#"<origin rpy="1.5707963267948966 1.5707963267948966 0"/>"#), None, None).unwrap();
     let r = c.joints[0].rotation;
     assert_vec("R y", &(r * Vec3::y()), &Vec3::x());
     assert!((r - rx(FRAC_PI_2) * ry(FRAC_PI_2)).amax() > 0.5);
@@ -470,11 +370,7 @@ fn link_without_inertial_is_massless() {
 #[test]
 fn axis_defaults_to_x_and_is_normalized() {
     let c = read_urdf(&two_joints(r#"<axis xyz="0 3 4"/>"#), None, None).unwrap();
-    assert_vec(
-        "normalized axis",
-        &c.joints[0].axis,
-        &Vec3::new(0.0, 0.6, 0.8),
-    );
+    assert_vec("normalized axis", &c.joints[0].axis, &Vec3::new(0.0, 0.6, 0.8));
     assert_vec("default axis", &c.joints[1].axis, &Vec3::x());
 }
 
@@ -482,10 +378,7 @@ fn axis_defaults_to_x_and_is_normalized() {
 fn continuous_is_revolute_and_prismatic_is_prismatic() {
     let xml = robot(
         &[("base", ""), ("a", BOX), ("b", BOX)],
-        &[
-            ("ja", "continuous", "base", "a", ""),
-            ("jb", "prismatic", "a", "b", ""),
-        ],
+        &[("ja", "continuous", "base", "a", ""), ("jb", "prismatic", "a", "b", "")],
     );
     let c = read_urdf(&xml, None, None).unwrap();
     assert_eq!(c.joints[0].kind, JointKind::Revolute);
@@ -503,22 +396,10 @@ fn default_tip_is_the_single_leaf() {
 fn several_leaves_without_tip_link_are_refused_listing_them() {
     let (element, reason) = refusal(&file("arm.urdf"), None, None);
     assert_eq!(element, "tip_link");
-    for leaf in [
-        "pedestal",
-        "camera_frame",
-        "finger_left",
-        "finger_right",
-        "tcp",
-    ] {
-        assert!(
-            reason.contains(&format!("`{leaf}`")),
-            "{reason} should list {leaf}"
-        );
+    for leaf in ["pedestal", "camera_frame", "finger_left", "finger_right", "tcp"] {
+        assert!(reason.contains(&format!("`{leaf}`")), "{reason} should list {leaf}");
     }
-    assert!(
-        reason.contains("5 leaves") && reason.contains("name one as tip_link"),
-        "{reason}"
-    );
+    assert!(reason.contains("5 leaves") && reason.contains("name one as tip_link"), "{reason}");
 }
 
 #[test]
@@ -544,12 +425,7 @@ fn byte_order_mark_and_prefixed_robot_are_read() {
 
 #[test]
 fn identical_duplicate_elements_are_accepted() {
-    let c = read_urdf(
-        &two_joints(r#"<axis xyz="0 0 1"/><axis xyz="0 0 1"/>"#),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&two_joints(r#"<axis xyz="0 0 1"/><axis xyz="0 0 1"/>"#), None, None).unwrap();
     assert_vec("axis", &c.joints[0].axis, &Vec3::z());
 }
 
@@ -559,48 +435,24 @@ fn identical_duplicate_elements_are_accepted() {
 #[test]
 fn triangle_inequality_violation_is_accepted_with_a_warning() {
     // 1 + 1 < 2.014: by 0.014/2.014 = 0.695 %.
-    let c = read_urdf(
-        &one_link(&inertial_xml("1", ["1", "0", "0", "1", "0", "2.014"])),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&one_link(&inertial_xml("1", ["1", "0", "0", "1", "0", "2.014"])), None, None).unwrap();
     assert_eq!(c.bodies[0].inertia, diag(1.0, 1.0, 2.014));
     assert_eq!(c.warnings.len(), 1, "{:?}", c.warnings);
     let w = &c.warnings[0];
     assert!(w.starts_with("link `l`: principal moments"), "{w}");
-    assert!(
-        w.contains(
-            "violate I1 + I2 >= I3 by 0.70 %; accepted as given (MuJoCo would need balanceinertia)"
-        ),
-        "{w}"
-    );
+    assert!(w.contains("violate I1 + I2 >= I3 by 0.70 %; accepted as given (MuJoCo would need balanceinertia)"), "{w}");
     // At the limit (a thin disc) and within rounding: no warning.
-    let c = read_urdf(
-        &one_link(&inertial_xml("1", ["1", "0", "0", "1", "0", "2"])),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&one_link(&inertial_xml("1", ["1", "0", "0", "1", "0", "2"])), None, None).unwrap();
     assert!(c.warnings.is_empty(), "{:?}", c.warnings);
 }
 
 #[test]
 fn mass_zero_with_inertia_is_kept_with_a_warning() {
-    let c = read_urdf(
-        &one_link(&inertial_xml("0", ["0.1", "0", "0", "0.1", "0", "0.1"])),
-        None,
-        None,
-    )
-    .unwrap();
+    let c = read_urdf(&one_link(&inertial_xml("0", ["0.1", "0", "0", "0.1", "0", "0.1"])), None, None).unwrap();
     assert_eq!(c.bodies[0].mass, 0.0);
     assert_eq!(c.bodies[0].inertia, diag(0.1, 0.1, 0.1));
     assert_eq!(c.warnings.len(), 1);
-    assert!(
-        c.warnings[0].starts_with("link `l`: mass 0 with a nonzero inertia"),
-        "{:?}",
-        c.warnings
-    );
+    assert!(c.warnings[0].starts_with("link `l`: mass 0 with a nonzero inertia"), "{:?}", c.warnings);
     // Mass 0 and no inertia: nothing to say.
     let c = read_urdf(&one_link(&inertial_xml("0", ["0"; 6])), None, None).unwrap();
     assert!(c.warnings.is_empty());
@@ -609,10 +461,7 @@ fn mass_zero_with_inertia_is_kept_with_a_warning() {
 #[test]
 fn inertia_of_base_side_links_is_not_checked() {
     // The base's point mass would be refused in a body; on the fixed base it is ignored.
-    let xml = robot(
-        &[("base", &inertial_xml("5", ["0"; 6])), ("l", BOX)],
-        &[("j", "revolute", "base", "l", "")],
-    );
+    let xml = robot(&[("base", &inertial_xml("5", ["0"; 6])), ("l", BOX)], &[("j", "revolute", "base", "l", "")]);
     assert!(read_urdf(&xml, None, None).is_ok());
 }
 
@@ -622,52 +471,30 @@ fn inertia_of_base_side_links_is_not_checked() {
 #[test]
 fn refuses_text_that_is_not_xml() {
     assert_refused("this is not XML at all", "document", "is not XML");
-    assert_refused(
-        "<robot><link name=\"a\"></robot>",
-        "document",
-        "not well-formed XML",
-    );
+    assert_refused("<robot><link name=\"a\"></robot>", "document", "not well-formed XML");
     assert_refused("<robot><link name=\"a\">", "document", "ends inside <link>");
     assert_refused("", "<robot>", "no <robot> element");
 }
 
 #[test]
 fn refuses_a_document_without_robot() {
-    assert_refused(
-        "<?xml version=\"1.0\"?><sdf><model/></sdf>",
-        "<robot>",
-        "root element is <sdf>, not <robot>",
-    );
+    assert_refused("<?xml version=\"1.0\"?><sdf><model/></sdf>", "<robot>", "root element is <sdf>, not <robot>");
     assert_refused("<robot name=\"r\"/>", "<robot>", "has no <link>");
 }
 
 #[test]
 fn refuses_floating_and_planar_joints() {
     for kind in ["floating", "planar"] {
-        let xml = robot(
-            &[("base", ""), ("l", BOX)],
-            &[("free", kind, "base", "l", "")],
-        );
-        assert_refused(
-            &xml,
-            "<joint name=\"free\">",
-            &format!("type `{kind}` is not supported"),
-        );
+        let xml = robot(&[("base", ""), ("l", BOX)], &[("free", kind, "base", "l", "")]);
+        assert_refused(&xml, "<joint name=\"free\">", &format!("type `{kind}` is not supported"));
     }
-    let xml = robot(
-        &[("base", ""), ("l", BOX)],
-        &[("odd", "screw", "base", "l", "")],
-    );
+    let xml = robot(&[("base", ""), ("l", BOX)], &[("odd", "screw", "base", "l", "")]);
     assert_refused(&xml, "<joint name=\"odd\">", "unknown joint type `screw`");
 }
 
 #[test]
 fn refuses_mimic_on_a_chain_joint() {
-    assert_refused(
-        &two_joints(r#"<mimic joint="j2" multiplier="1"/>"#),
-        "<joint name=\"j1\"><mimic>",
-        "cannot mimic",
-    );
+    assert_refused(&two_joints(r#"<mimic joint="j2" multiplier="1"/>"#), "<joint name=\"j1\"><mimic>", "cannot mimic");
 }
 
 #[test]
@@ -686,16 +513,8 @@ fn refuses_negative_and_non_finite_mass() {
 fn refuses_an_inertia_that_is_not_positive_definite_with_mass() {
     let element = "<link name=\"l\"><inertial><inertia>";
     // A point mass, a rod, and a tensor with a negative principal moment.
-    for inertia in [
-        ["0"; 6],
-        ["0", "0", "0", "1", "0", "1"],
-        ["1", "2", "0", "1", "0", "1"],
-    ] {
-        assert_refused(
-            &one_link(&inertial_xml("1", inertia)),
-            element,
-            "is not positive definite",
-        );
+    for inertia in [["0"; 6], ["0", "0", "0", "1", "0", "1"], ["1", "2", "0", "1", "0", "1"]] {
+        assert_refused(&one_link(&inertial_xml("1", inertia)), element, "is not positive definite");
     }
     assert_refused(
         &one_link(&inertial_xml("0", ["-1", "0", "0", "1", "0", "1"])),
@@ -708,9 +527,7 @@ fn refuses_an_inertia_that_is_not_positive_definite_with_mass() {
         "attribute `izz` = \"inf\" is not finite",
     );
     assert_refused(
-        &one_link(
-            r#"<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0"/></inertial>"#,
-        ),
+        &one_link(r#"<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0"/></inertial>"#),
         element,
         "attribute `izz` is missing",
     );
@@ -724,27 +541,11 @@ fn refuses_an_inertia_that_is_not_positive_definite_with_mass() {
 #[test]
 fn refuses_malformed_number_lists() {
     let element = "<joint name=\"j1\"><origin>";
-    assert_refused(
-        &two_joints(r#"<origin xyz="1 2"/>"#),
-        element,
-        "must be 3 numbers separated by spaces, has 2",
-    );
+    assert_refused(&two_joints(r#"<origin xyz="1 2"/>"#), element, "must be 3 numbers separated by spaces, has 2");
     assert_refused(&two_joints(r#"<origin xyz="1 2 3 4"/>"#), element, "has 4");
-    assert_refused(
-        &two_joints(r#"<origin xyz="1,2,3"/>"#),
-        element,
-        "must be 3 numbers",
-    );
-    assert_refused(
-        &two_joints(r#"<origin xyz="1, 2, 3"/>"#),
-        element,
-        "`1,` is not a finite number",
-    );
-    assert_refused(
-        &two_joints(r#"<origin rpy="0 nan 0"/>"#),
-        element,
-        "`nan` is not a finite number",
-    );
+    assert_refused(&two_joints(r#"<origin xyz="1,2,3"/>"#), element, "must be 3 numbers");
+    assert_refused(&two_joints(r#"<origin xyz="1, 2, 3"/>"#), element, "`1,` is not a finite number");
+    assert_refused(&two_joints(r#"<origin rpy="0 nan 0"/>"#), element, "`nan` is not a finite number");
     assert_refused(&two_joints(r#"<origin xyz=""/>"#), element, "has 0");
     assert_refused(
         &two_joints(r#"<limit lower="-1.57." upper="1"/>"#),
@@ -755,28 +556,14 @@ fn refuses_malformed_number_lists() {
 
 #[test]
 fn refuses_a_zero_axis_on_a_moving_joint() {
-    assert_refused(
-        &two_joints(r#"<axis xyz="0 0 0"/>"#),
-        "<joint name=\"j1\"><axis>",
-        "zero vector",
-    );
+    assert_refused(&two_joints(r#"<axis xyz="0 0 0"/>"#), "<joint name=\"j1\"><axis>", "zero vector");
 }
 
 #[test]
 fn refuses_joints_naming_links_that_do_not_exist() {
-    let xml = robot(
-        &[("base", ""), ("l", BOX)],
-        &[("j", "revolute", "bsae", "l", "")],
-    );
-    assert_refused(
-        &xml,
-        "<joint name=\"j\"><parent>",
-        "link `bsae` does not exist",
-    );
-    let xml = robot(
-        &[("base", ""), ("l", BOX)],
-        &[("j", "revolute", "base", "k", "")],
-    );
+    let xml = robot(&[("base", ""), ("l", BOX)], &[("j", "revolute", "bsae", "l", "")]);
+    assert_refused(&xml, "<joint name=\"j\"><parent>", "link `bsae` does not exist");
+    let xml = robot(&[("base", ""), ("l", BOX)], &[("j", "revolute", "base", "k", "")]);
     assert_refused(&xml, "<joint name=\"j\"><child>", "link `k` does not exist");
     let xml = "<robot><link name=\"a\"/><link name=\"b\"/><joint name=\"j\" type=\"fixed\"><parent link=\"a\"/></joint></robot>";
     assert_refused(xml, "<joint name=\"j\">", "has no <child");
@@ -786,25 +573,14 @@ fn refuses_joints_naming_links_that_do_not_exist() {
 fn refuses_a_link_that_is_the_child_of_two_joints() {
     let xml = robot(
         &[("base", ""), ("a", BOX), ("b", BOX)],
-        &[
-            ("ja", "revolute", "base", "a", ""),
-            ("jb", "revolute", "base", "b", ""),
-            ("jc", "revolute", "a", "b", ""),
-        ],
+        &[("ja", "revolute", "base", "a", ""), ("jb", "revolute", "base", "b", ""), ("jc", "revolute", "a", "b", "")],
     );
-    assert_refused(
-        &xml,
-        "<link name=\"b\">",
-        "is the child of two joints, `jb` and `jc`",
-    );
+    assert_refused(&xml, "<link name=\"b\">", "is the child of two joints, `jb` and `jc`");
 }
 
 #[test]
 fn refuses_two_roots() {
-    let xml = robot(
-        &[("base", ""), ("l", BOX), ("stray", BOX)],
-        &[("j", "revolute", "base", "l", "")],
-    );
+    let xml = robot(&[("base", ""), ("l", BOX), ("stray", BOX)], &[("j", "revolute", "base", "l", "")]);
     assert_refused(&xml, "<robot>", "has 2 root links (`base`, `stray`)");
 }
 
@@ -813,11 +589,7 @@ fn refuses_a_loop() {
     // base is the root; a -> b -> c -> a is a loop hanging nowhere.
     let xml = robot(
         &[("base", ""), ("a", BOX), ("b", BOX), ("c", BOX)],
-        &[
-            ("ab", "revolute", "a", "b", ""),
-            ("bc", "revolute", "b", "c", ""),
-            ("ca", "revolute", "c", "a", ""),
-        ],
+        &[("ab", "revolute", "a", "b", ""), ("bc", "revolute", "b", "c", ""), ("ca", "revolute", "c", "a", "")],
     );
     let (element, reason) = refusal(&xml, None, None);
     assert!(element.starts_with("<joint name=\""), "{element}");
@@ -826,13 +598,8 @@ fn refuses_a_loop() {
         assert!(reason.contains(j), "{reason} should name {j}");
     }
     // A joint from a link to itself.
-    let xml = robot(
-        &[("base", ""), ("a", BOX)],
-        &[
-            ("j", "revolute", "base", "a", ""),
-            ("self", "revolute", "a", "a", ""),
-        ],
-    );
+    let xml =
+        robot(&[("base", ""), ("a", BOX)], &[("j", "revolute", "base", "a", ""), ("self", "revolute", "a", "a", "")]);
     assert_refused(&xml, "<link name=\"a\">", "is the child of two joints");
     let xml = robot(&[("a", BOX)], &[("self", "revolute", "a", "a", "")]);
     assert_refused(&xml, "<joint name=\"self\">", "closes a loop");
@@ -841,80 +608,32 @@ fn refuses_a_loop() {
 #[test]
 fn refuses_unknown_base_and_tip_links() {
     let xml = file("arm.urdf");
-    assert_refused_chain(
-        &xml,
-        Some("nowhere"),
-        Some("tcp"),
-        "base_link = \"nowhere\"",
-        "no link named `nowhere`",
-    );
-    assert_refused_chain(
-        &xml,
-        None,
-        Some("nowhere"),
-        "tip_link = \"nowhere\"",
-        "no link named `nowhere`",
-    );
+    assert_refused_chain(&xml, Some("nowhere"), Some("tcp"), "base_link = \"nowhere\"", "no link named `nowhere`");
+    assert_refused_chain(&xml, None, Some("nowhere"), "tip_link = \"nowhere\"", "no link named `nowhere`");
 }
 
 #[test]
 fn refuses_a_tip_not_below_the_base() {
     let xml = file("arm.urdf");
-    assert_refused_chain(
-        &xml,
-        Some("link2"),
-        Some("link1"),
-        "tip_link = \"link1\"",
-        "is not below base_link `link2`",
-    );
-    assert_refused_chain(
-        &xml,
-        Some("link3"),
-        Some("pedestal"),
-        "tip_link = \"pedestal\"",
-        "is not below",
-    );
+    assert_refused_chain(&xml, Some("link2"), Some("link1"), "tip_link = \"link1\"", "is not below base_link `link2`");
+    assert_refused_chain(&xml, Some("link3"), Some("pedestal"), "tip_link = \"pedestal\"", "is not below");
 }
 
 #[test]
 fn refuses_a_chain_without_moving_joint() {
     let xml = file("arm.urdf");
-    assert_refused_chain(
-        &xml,
-        Some("link2"),
-        Some("flange"),
-        "chain `link2` -> `flange`",
-        "has no moving joint",
-    );
-    assert_refused_chain(
-        &xml,
-        Some("link2"),
-        Some("link2"),
-        "chain `link2` -> `link2`",
-        "no moving joint",
-    );
-    assert_refused_chain(
-        &xml,
-        None,
-        Some("pedestal"),
-        "chain `base_link` -> `pedestal`",
-        "has no moving joint",
-    );
+    assert_refused_chain(&xml, Some("link2"), Some("flange"), "chain `link2` -> `flange`", "has no moving joint");
+    assert_refused_chain(&xml, Some("link2"), Some("link2"), "chain `link2` -> `link2`", "no moving joint");
+    assert_refused_chain(&xml, None, Some("pedestal"), "chain `base_link` -> `pedestal`", "has no moving joint");
 }
 
 #[test]
 fn refuses_duplicate_link_and_joint_names() {
-    let xml = robot(
-        &[("base", ""), ("l", BOX), ("l", "")],
-        &[("j", "revolute", "base", "l", "")],
-    );
+    let xml = robot(&[("base", ""), ("l", BOX), ("l", "")], &[("j", "revolute", "base", "l", "")]);
     assert_refused(&xml, "<link name=\"l\">", "appears twice");
     let xml = robot(
         &[("base", ""), ("a", BOX), ("b", BOX)],
-        &[
-            ("j", "revolute", "base", "a", ""),
-            ("j", "revolute", "a", "b", ""),
-        ],
+        &[("j", "revolute", "base", "a", ""), ("j", "revolute", "a", "b", "")],
     );
     assert_refused(&xml, "<joint name=\"j\">", "appears twice");
 }
@@ -938,20 +657,12 @@ fn refuses_contradicting_duplicate_elements() {
         "<link name=\"l\"><inertial>",
         "has two <mass> elements that differ",
     );
-    assert_refused(
-        &one_link(&format!("{BOX}{BOX}")),
-        "<link name=\"l\">",
-        "has two <inertial> elements",
-    );
+    assert_refused(&one_link(&format!("{BOX}{BOX}")), "<link name=\"l\">", "has two <inertial> elements");
 }
 
 #[test]
 fn refuses_missing_names_and_types() {
-    assert_refused(
-        "<robot><link/></robot>",
-        "<link>",
-        "attribute `name` is missing",
-    );
+    assert_refused("<robot><link/></robot>", "<link>", "attribute `name` is missing");
     assert_refused(
         "<robot><link name=\"a\"/><joint name=\"j\"><parent link=\"a\"/></joint></robot>",
         "<joint name=\"j\">",

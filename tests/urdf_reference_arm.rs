@@ -52,7 +52,8 @@ fn run(model: Model) -> Vec<Vec<(String, f64)>> {
             push(&mut row, "N_normal", s.normal_load[i]);
             push(&mut row, "stick", f64::from(u8::from(s.is_stuck(i))));
             // Back into the engine's link frame (the DH joint frame).
-            let (f, n): (Vec3, Vec3) = (turn.transpose() * s.reaction_force[i], turn.transpose() * s.reaction_moment[i]);
+            let (f, n): (Vec3, Vec3) =
+                (turn.transpose() * s.reaction_force[i], turn.transpose() * s.reaction_moment[i]);
             for k in 0..3 {
                 row.push((format!("f[{},{}]", i + 1, k + 1), f[k]));
                 row.push((format!("n[{},{}]", i + 1, k + 1), n[k]));
@@ -95,7 +96,10 @@ fn reference_arm_as_urdf_moves_as_its_dh_file_to_1e_9() {
         if deviation > worst.0 {
             worst = (deviation, name.clone());
         }
-        assert!(deviation <= 1e-9, "{name}: the URDF model deviates by {deviation:.2e} of the largest magnitude {scale:.3e}");
+        assert!(
+            deviation <= 1e-9,
+            "{name}: the URDF model deviates by {deviation:.2e} of the largest magnitude {scale:.3e}"
+        );
     }
     eprintln!("largest deviation {:.2e} ({}); {stick_changes} stick/slip changes in the samples", worst.0, worst.1);
     assert!(stick_changes >= 4, "the compared motion has stick-slip");

@@ -60,11 +60,17 @@ def revolute(ax):
     dim(ax, 1.45, pz, pz + lb, "l_b", side=1)
     for z in (pz - la, pz, pz + lb):
         ax.plot([0.05, 1.5], [z, z], color="0.4", lw=0.5, ls=":")
-    ax.add_patch(FancyArrowPatch((-0.5, pz - la - 0.18), (0.5, pz - la - 0.18), arrowstyle="<|-|>",
-                                 mutation_scale=7, color="k", lw=0.7))
+    ax.add_patch(
+        FancyArrowPatch(
+            (-0.5, pz - la - 0.18), (0.5, pz - la - 0.18), arrowstyle="<|-|>", mutation_scale=7, color="k", lw=0.7
+        )
+    )
     ax.text(0.0, pz - la - 0.24, "d_A", ha="center", va="top", fontsize=8)
-    ax.add_patch(FancyArrowPatch((-0.5, pz + lb + 0.18), (0.5, pz + lb + 0.18), arrowstyle="<|-|>",
-                                 mutation_scale=7, color="k", lw=0.7))
+    ax.add_patch(
+        FancyArrowPatch(
+            (-0.5, pz + lb + 0.18), (0.5, pz + lb + 0.18), arrowstyle="<|-|>", mutation_scale=7, color="k", lw=0.7
+        )
+    )
     ax.text(0.0, pz + lb + 0.24, "d_B", ha="center", va="bottom", fontsize=8)
     # thrust bearing C under the pin
     for x in (-0.3, -0.1, 0.1, 0.3):
@@ -76,14 +82,28 @@ def revolute(ax):
     # the reaction at P
     arrow(ax, (0, pz), (0.75, pz + 0.45), color="tab:red", lw=1.6)
     ax.text(0.78, pz + 0.5, "f", color="tab:red", ha="left", va="bottom", fontweight="bold")
-    ax.add_patch(FancyArrowPatch((-0.12, -0.3), (-0.12, 0.3), connectionstyle="arc3,rad=-0.9", arrowstyle="-|>",
-                                 mutation_scale=9, color="tab:purple", lw=1.3))
+    ax.add_patch(
+        FancyArrowPatch(
+            (-0.12, -0.3),
+            (-0.12, 0.3),
+            connectionstyle="arc3,rad=-0.9",
+            arrowstyle="-|>",
+            mutation_scale=9,
+            color="tab:purple",
+            lw=1.3,
+        )
+    )
     ax.text(-0.3, 0.42, "n", color="tab:purple", ha="right", va="bottom", fontweight="bold")
-    ax.text(-2.75, -2.75,
-            "O: joint origin = URDF child link frame at q = 0 (its y axis points into the page)\n"
-            "P: reaction_point = s·a, on the axis (else refused); the reaction (f, n) of link i−1 on\n"
-            "   link i acts at P and is reported in the child link frame; A at P − l_a·a, B at P + l_b·a",
-            ha="left", va="top", fontsize=8)
+    ax.text(
+        -2.75,
+        -2.75,
+        "O: joint origin = URDF child link frame at q = 0 (its y axis points into the page)\n"
+        "P: reaction_point = s·a, on the axis (else refused); the reaction (f, n) of link i−1 on\n"
+        "   link i acts at P and is reported in the child link frame; A at P − l_a·a, B at P + l_b·a",
+        ha="left",
+        va="top",
+        fontsize=8,
+    )
     ax.set_xlim(-2.8, 3.6)
     ax.set_ylim(-3.55, 3.3)
 
@@ -107,11 +127,16 @@ def slider(ax):
             ax.plot(x, y, "s", color=BEARING, ms=4)
     ax.add_patch(FancyArrowPatch((-1.0, -1.2), (1.0, -1.2), arrowstyle="<|-|>", mutation_scale=8, color="k", lw=0.8))
     ax.text(0, -1.27, "a (slider length, along the axis)", ha="center", va="top")
-    ax.text(-2.9, -1.75,
-            "centre: a point of link i, given in the URDF child link frame;\n"
-            "the reaction (f, n) acts there, reported in the child link frame;\n"
-            "contact at the 8 corner points (squares: 4 of them)",
-            ha="left", va="top", fontsize=8)
+    ax.text(
+        -2.9,
+        -1.75,
+        "centre: a point of link i, given in the URDF child link frame;\n"
+        "the reaction (f, n) acts there, reported in the child link frame;\n"
+        "contact at the 8 corner points (squares: 4 of them)",
+        ha="left",
+        va="top",
+        fontsize=8,
+    )
     # cross-section, looking along the axis
     cx, cy = 0.0, -4.15
     ax.add_patch(Rectangle((cx - 1.6, cy - 1.15), 3.2, 2.3, fc=PARENT, ec="k", hatch="//", lw=0.8))
@@ -122,30 +147,44 @@ def slider(ax):
     arrow(ax, (cx, cy), (cx, cy + 0.5), lw=1.3)
     ax.text(cx + 0.82, cy - 0.05, "x_e", ha="left", va="top")
     ax.text(cx + 0.05, cy + 0.5, "y_e", ha="left", va="bottom")
-    ax.add_patch(FancyArrowPatch((cx - 1.0, cy - 0.8), (cx + 1.0, cy - 0.8), arrowstyle="<|-|>",
-                                 mutation_scale=8, color="k", lw=0.8))
+    ax.add_patch(
+        FancyArrowPatch(
+            (cx - 1.0, cy - 0.8), (cx + 1.0, cy - 0.8), arrowstyle="<|-|>", mutation_scale=8, color="k", lw=0.8
+        )
+    )
     ax.text(cx - 1.7, cy - 0.8, "b (along x_e)", ha="right", va="center")
-    ax.add_patch(FancyArrowPatch((cx + 1.25, cy - 0.6), (cx + 1.25, cy + 0.6), arrowstyle="<|-|>",
-                                 mutation_scale=8, color="k", lw=0.8))
+    ax.add_patch(
+        FancyArrowPatch(
+            (cx + 1.25, cy - 0.6), (cx + 1.25, cy + 0.6), arrowstyle="<|-|>", mutation_scale=8, color="k", lw=0.8
+        )
+    )
     ax.text(cx + 1.7, cy, "c (along y_e)", ha="left", va="center")
     ax.text(-2.9, cy + 1.35, "cross-section, a out of the page:", ha="left", va="bottom", fontsize=8)
-    ax.text(-2.9, cy - 1.35,
-            "x_e, y_e: the engine frame's axes, R_a·x and R_a·y in the child link\n"
-            "frame (= its x and y when the URDF axis is +z; table in docs/urdf.md)",
-            ha="left", va="top", fontsize=8)
+    ax.text(
+        -2.9,
+        cy - 1.35,
+        "x_e, y_e: the engine frame's axes, R_a·x and R_a·y in the child link\n"
+        "frame (= its x and y when the URDF axis is +z; table in docs/urdf.md)",
+        ha="left",
+        va="top",
+        fontsize=8,
+    )
     ax.set_xlim(-3.0, 4.4)
     ax.set_ylim(-6.2, 1.6)
 
 
 def main():
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12.5, 6.6), layout="constrained",
-                               gridspec_kw={"width_ratios": [1.0, 1.05]})
+    fig, (a, b) = plt.subplots(
+        1, 2, figsize=(12.5, 6.6), layout="constrained", gridspec_kw={"width_ratios": [1.0, 1.05]}
+    )
     for ax in (a, b):
         ax.set_aspect("equal")
         ax.axis("off")
     revolute(a)
     slider(b)
-    fig.savefig(OUT, bbox_inches="tight", pad_inches=0.2, **({"metadata": {"Date": None}} if OUT.suffix == ".svg" else {}))
+    fig.savefig(
+        OUT, bbox_inches="tight", pad_inches=0.2, **({"metadata": {"Date": None}} if OUT.suffix == ".svg" else {})
+    )
     print(f"wrote {OUT}")
 
 

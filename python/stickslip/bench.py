@@ -35,12 +35,17 @@ def main(a: argparse.Namespace) -> int:
     from . import spec as spec_module
     from .sweep import run_sweep
 
-    text = (f'stop_time = {a.stop_time!r}\ncommunication_step = {a.communication_step!r}\nmotion = "reference"\n'
-            f'fmu = "{a.fmu}"\n[sample]\nn = {a.variants}\nseed = 1\n"k[3]" = {{ uniform = [0.99e6, 1.01e6] }}\n')
+    text = (
+        f'stop_time = {a.stop_time!r}\ncommunication_step = {a.communication_step!r}\nmotion = "reference"\n'
+        f'fmu = "{a.fmu}"\n[sample]\nn = {a.variants}\nseed = 1\n"k[3]" = {{ uniform = [0.99e6, 1.01e6] }}\n'
+    )
     spec = spec_module.parse(text, "bench")
     rates, lines = {}, []
-    print(f"bench: {a.variants} variants of the {a.stop_time:g} s reference motion per worker count, "
-          f"{os.cpu_count()} cores, load average {_load()}", flush=True)
+    print(
+        f"bench: {a.variants} variants of the {a.stop_time:g} s reference motion per worker count, "
+        f"{os.cpu_count()} cores, load average {_load()}",
+        flush=True,
+    )
     for n in (int(x) for x in a.workers.split(",")):
         with tempfile.TemporaryDirectory(prefix="stickslip-bench-") as out:
             wall = time.perf_counter()
@@ -52,15 +57,22 @@ def main(a: argparse.Namespace) -> int:
         per, cpu = rows["wall_s"].median(), rows["cpu_s"].median()
         busy = rows["wall_s"].sum() / (stats["workers"] * stats["seconds"])
         lines.append((n, rates[n], per, cpu, busy))
-        print(f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.3f} s wall, {cpu:.3f} s CPU "
-              f"per variant in the worker, workers busy {100 * busy:.0f} %, {total - stats['seconds']:.1f} s cluster "
-              f"start-up and shut-down), load average {_load()}", flush=True)
+        print(
+            f"bench: {n} worker(s): {rates[n]:.3f} variants/s ({ok} ok, median {per:.3f} s wall, {cpu:.3f} s CPU "
+            f"per variant in the worker, workers busy {100 * busy:.0f} %, {total - stats['seconds']:.1f} s cluster "
+            f"start-up and shut-down), load average {_load()}",
+            flush=True,
+        )
     one = rates.get(1)
-    print("\n| workers | variants/s | per variant in the worker: wall, CPU (median) | workers busy "
-          "| parallel efficiency |\n|---|---|---|---|---|")
+    print(
+        "\n| workers | variants/s | per variant in the worker: wall, CPU (median) | workers busy "
+        "| parallel efficiency |\n|---|---|---|---|---|"
+    )
     for n, r, per, cpu, busy in lines:
-        print(f"| {n} | {r:.3f} | {per:.3f} s, {cpu:.3f} s | {100 * busy:.0f} % | "
-              + (f"{r / (n * one):.2f} |" if one else "– |"))
+        print(
+            f"| {n} | {r:.3f} | {per:.3f} s, {cpu:.3f} s | {100 * busy:.0f} % | "
+            + (f"{r / (n * one):.2f} |" if one else "– |")
+        )
     return 0
 
 

@@ -14,25 +14,44 @@ def _sweep_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="result directory (results.parquet, parts/, summary.png, summary.md)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
-    where.add_argument("--workers", type=int, metavar="N",
-                       help=f"worker processes of the local cluster (default: the number of cores, {os.cpu_count()})")
-    p.add_argument("--timeout", type=float, metavar="SECONDS", help="stop a variant after this much wall time "
-                   "(status timeout)")
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help=f"worker processes of the local cluster (default: the number of cores, {os.cpu_count()})",
+    )
+    p.add_argument(
+        "--timeout", type=float, metavar="SECONDS", help="stop a variant after this much wall time (status timeout)"
+    )
     p.add_argument("--retries", type=int, default=2, help="runs of a task again after its worker died (default 2)")
     p.add_argument("--samples", type=int, metavar="N", help="override [sample] n (the first N draws of the SPEC)")
     p.add_argument("--stop-time", type=float, metavar="SECONDS", help="override stop_time")
-    p.add_argument("--motion", metavar="MOTION.toml", help="override the SPEC's motion with this motion file "
-                   "(docs/motion.md), checked against the FMU's joints")
+    p.add_argument(
+        "--motion",
+        metavar="MOTION.toml",
+        help="override the SPEC's motion with this motion file (docs/motion.md), checked against the FMU's joints",
+    )
     c = p.add_argument_group("convergence check (docs/convergence.md)")
-    c.add_argument("--check-convergence", action="store_true",
-                   help="run each variant (or --convergence-fraction of them) again with a tenfold tighter "
-                        "error_tolerance (fixed sub-steps: halved) and record the relative spread of every "
-                        "metric in a column <metric>_spread (n_stick_spread[i] for a joint's)")
-    c.add_argument("--convergence-fraction", type=float, metavar="F",
-                   help="check this fraction of the variants, chosen by the SPEC's seed (default 1.0)")
-    c.add_argument("--convergence-threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
-                   help=f"a metric whose spread exceeds T is marked not converged in the summary "
-                        f"(default {DEFAULT_THRESHOLD:g})")
+    c.add_argument(
+        "--check-convergence",
+        action="store_true",
+        help="run each variant (or --convergence-fraction of them) again with a tenfold tighter "
+        "error_tolerance (fixed sub-steps: halved) and record the relative spread of every "
+        "metric in a column <metric>_spread (n_stick_spread[i] for a joint's)",
+    )
+    c.add_argument(
+        "--convergence-fraction",
+        type=float,
+        metavar="F",
+        help="check this fraction of the variants, chosen by the SPEC's seed (default 1.0)",
+    )
+    c.add_argument(
+        "--convergence-threshold",
+        type=float,
+        default=DEFAULT_THRESHOLD,
+        metavar="T",
+        help=f"a metric whose spread exceeds T is marked not converged in the summary (default {DEFAULT_THRESHOLD:g})",
+    )
 
 
 def sweep_main(a: argparse.Namespace) -> int:
@@ -49,8 +68,9 @@ def sweep_main(a: argparse.Namespace) -> int:
         print("stickslip sweep: --convergence-fraction needs --check-convergence", file=sys.stderr)
         return 1
     if not a.convergence_threshold > 0:
-        print(f"stickslip sweep: --convergence-threshold {a.convergence_threshold:g}: must be positive",
-              file=sys.stderr)
+        print(
+            f"stickslip sweep: --convergence-threshold {a.convergence_threshold:g}: must be positive", file=sys.stderr
+        )
         return 1
     try:
         check = None
@@ -63,14 +83,18 @@ def sweep_main(a: argparse.Namespace) -> int:
         return 1
     rows = stats["rows"]
     columns = list(rows.columns)
-    metrics = columns[columns.index("t_end") + 1:columns.index("worker")]
+    metrics = columns[columns.index("t_end") + 1 : columns.index("worker")]
     if len(rows):
-        summary.write(rows, spec, metrics, a.out, stats["seconds"] or None, a.convergence_threshold,
-                      stats["convergence"])
+        summary.write(
+            rows, spec, metrics, a.out, stats["seconds"] or None, a.convergence_threshold, stats["convergence"]
+        )
     counts = ", ".join(f"{n} {s}" for s, n in rows["status"].value_counts().items())
-    rate = f"; {stats['ran'] / stats['seconds']:.2f} variants/s on {stats['workers']} workers" if stats["seconds"] else ""
-    print(f"sweep: {len(rows)} of {len(spec)} variants in {a.out}/results.parquet ({counts or 'none'}){rate}",
-          flush=True)
+    rate = (
+        f"; {stats['ran'] / stats['seconds']:.2f} variants/s on {stats['workers']} workers" if stats["seconds"] else ""
+    )
+    print(
+        f"sweep: {len(rows)} of {len(spec)} variants in {a.out}/results.parquet ({counts or 'none'}){rate}", flush=True
+    )
     if summary.checked(rows):
         _convergence_line(rows, stats["metrics"], a.convergence_threshold, a.out)
     return 130 if stats["interrupted"] else 0
@@ -84,9 +108,14 @@ def _convergence_line(rows, metrics, threshold: float, out) -> None:
     done = rows[rows["convergence_status"] == CHECKED]
     bad = [int(r["run"]) for _, r in done.iterrows() if not_converged_metrics(r, metrics, threshold)]
     failed = int((~rows["convergence_status"].fillna("not run").isin([CHECKED, "not selected", "not run"])).sum())
-    print(f"convergence: {len(done)} variants checked, {len(bad)} with a metric not converged "
-          f"(spread > {threshold:g})" + (f", {failed} check runs failed" if failed else "")
-          + (f"; see {out}/summary.md" if bad or failed else ""), file=sys.stderr if bad else sys.stdout, flush=True)
+    print(
+        f"convergence: {len(done)} variants checked, {len(bad)} with a metric not converged "
+        f"(spread > {threshold:g})"
+        + (f", {failed} check runs failed" if failed else "")
+        + (f"; see {out}/summary.md" if bad or failed else ""),
+        file=sys.stderr if bad else sys.stdout,
+        flush=True,
+    )
 
 
 def main(argv=None) -> int:

@@ -110,8 +110,10 @@ def tightened(parameters: dict, md) -> tuple:
     def own(name):
         value = parameters.get(name, _start_value(md, name))
         if value is None:
-            raise ValueError(f"the FMU has no parameter `{name}` with a start value: the convergence check "
-                             "tightens the error tolerance (or halves fixed sub-steps)")
+            raise ValueError(
+                f"the FMU has no parameter `{name}` with a start value: the convergence check "
+                "tightens the error tolerance (or halves fixed sub-steps)"
+            )
         return float(value)
 
     h_min, h_max = own("h_min"), own("h_max")
@@ -139,23 +141,39 @@ def selected_runs(n: int, fraction: float, seed: int) -> set:
     return set(int(i) for i in np.argsort(u, kind="stable")[:k])
 
 
-def check_columns(row: dict, metrics, check_row: dict | None, status: str | None = None,
-                  wall: float = math.nan) -> dict:
+def check_columns(
+    row: dict, metrics, check_row: dict | None, status: str | None = None, wall: float = math.nan
+) -> dict:
     """The convergence columns of a sweep row: ``convergence_status``, ``convergence_message``,
     ``convergence_wall_s`` and ``<metric>_spread`` for every metric (NaN unless checked)."""
     nan = dict.fromkeys(spread_columns(metrics), math.nan)
     if check_row is None:
         return {"convergence_status": status, "convergence_message": "", "convergence_wall_s": wall} | nan
     if check_row.get("status") != "ok":
-        return {"convergence_status": check_row.get("status", "error"),
-                "convergence_message": check_row.get("message", ""), "convergence_wall_s": wall} | nan
-    return ({"convergence_status": CHECKED, "convergence_message": check_row.get("message", ""),
-             "convergence_wall_s": wall}
-            | {spread_name(m): s for m, s in spreads(row, check_row, metrics).items()})
+        return {
+            "convergence_status": check_row.get("status", "error"),
+            "convergence_message": check_row.get("message", ""),
+            "convergence_wall_s": wall,
+        } | nan
+    return {
+        "convergence_status": CHECKED,
+        "convergence_message": check_row.get("message", ""),
+        "convergence_wall_s": wall,
+    } | {spread_name(m): s for m, s in spreads(row, check_row, metrics).items()}
 
 
-def run_checked(fmu_digest: str, run: int, parameters: dict, stop_time: float, step: float, motion,
-                metrics, rerun: dict | None, timeout: float | None = None, fmu_data: bytes | None = None) -> dict:
+def run_checked(
+    fmu_digest: str,
+    run: int,
+    parameters: dict,
+    stop_time: float,
+    step: float,
+    motion,
+    metrics,
+    rerun: dict | None,
+    timeout: float | None = None,
+    fmu_data: bytes | None = None,
+) -> dict:
     """One variant of a checked sweep (a Dask task): the row of
     :func:`stickslip.variant.run_variant`, and, when ``rerun`` (the check run's parameter
     values, e.g. ``{"error_tolerance": 5e-5}``) is given and the run is ok, the same variant
@@ -190,7 +208,7 @@ def metrics_of_series(result: dict) -> dict:
         elif m == "final_eps":
             out[m] = float(result["eps"][-1])
         elif m.startswith("max_N_normal["):
-            out[m] = float(max(result[m[len("max_"):]]))
+            out[m] = float(max(result[m[len("max_") :]]))
         else:
             out[m] = float(result[m][-1])
     return out
@@ -218,8 +236,10 @@ class Convergence:
     def report(self) -> str:
         """A table: metric, value, value of the check run, spread, and a mark where above the
         threshold (metrics that are 0 in both runs left out)."""
-        lines = [f"convergence check ({self.method}; threshold {self.threshold:g}): {self.status}"
-                 + (f": {self.message}" if self.status != CHECKED and self.message else "")]
+        lines = [
+            f"convergence check ({self.method}; threshold {self.threshold:g}): {self.status}"
+            + (f": {self.message}" if self.status != CHECKED and self.message else "")
+        ]
         if self.status == CHECKED:
             width = max(len(m) for m in self.spreads)
             lines.append(f"  {'metric':<{width}}  {'run':>13}  {'check run':>13}  {'spread':>9}")
@@ -236,14 +256,23 @@ class Convergence:
         if not bad:
             return None
         worst = ", ".join(f"{m} ({self.spreads[m]:.1%})" for m in bad)
-        return (f"WARNING: not converged: {worst} changed by more than {self.threshold:.3g} "
-                f"({self.threshold:.1%}) with {self.method}; these numbers depend on the integration, "
-                "read them as one sample of a distribution, not as a value (docs/convergence.md)")
+        return (
+            f"WARNING: not converged: {worst} changed by more than {self.threshold:.3g} "
+            f"({self.threshold:.1%}) with {self.method}; these numbers depend on the integration, "
+            "read them as one sample of a distribution, not as a value (docs/convergence.md)"
+        )
 
 
-def check_convergence(parameters: dict | None = None, fmu=None, stop_time: float | None = None,
-                      step: float = 1e-3, motion=None, threshold: float = DEFAULT_THRESHOLD,
-                      timeout: float | None = None, rerun: dict | None = None) -> Convergence:
+def check_convergence(
+    parameters: dict | None = None,
+    fmu=None,
+    stop_time: float | None = None,
+    step: float = 1e-3,
+    motion=None,
+    threshold: float = DEFAULT_THRESHOLD,
+    timeout: float | None = None,
+    rerun: dict | None = None,
+) -> Convergence:
     """Runs the FMU twice, as a sweep variant (:func:`stickslip.variant.run_variant`), and
     compares the metrics.
 
@@ -279,8 +308,15 @@ def check_convergence(parameters: dict | None = None, fmu=None, stop_time: float
         method = f"given: {describe(rerun)}"
     metrics = metric_names([v.name for v in md.modelVariables if v.causality == "output"])
     main = run_variant(digest, 0, parameters, stop_time, step, motion, timeout, data)
-    result = Convergence(NOT_RUN, dict(rerun), method, threshold, {m: main.get(m, math.nan) for m in metrics},
-                         message=main.get("message", ""), seconds=(main.get("wall_s", math.nan), math.nan))
+    result = Convergence(
+        NOT_RUN,
+        dict(rerun),
+        method,
+        threshold,
+        {m: main.get(m, math.nan) for m in metrics},
+        message=main.get("message", ""),
+        seconds=(main.get("wall_s", math.nan), math.nan),
+    )
     result.spreads = dict.fromkeys(metrics, math.nan)
     if main["status"] != "ok":
         result.message = f"the run ended {main['status']}: {main.get('message', '')}"

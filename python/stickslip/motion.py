@@ -99,8 +99,10 @@ class TableMotion:
             raise MotionError(f"{source}: `time` must be finite and strictly increasing")
         unknown = sorted(set(columns) - set(input_names(joints)))
         if unknown:
-            raise MotionError(f"{source}: unknown column(s) {unknown}; the FMU's inputs are "
-                              f"q_star[1..{joints}], qd_star[..], qdd_star[..]")
+            raise MotionError(
+                f"{source}: unknown column(s) {unknown}; the FMU's inputs are "
+                f"q_star[1..{joints}], qd_star[..], qdd_star[..]"
+            )
         missing = [f"q_star[{i}]" for i in range(1, joints + 1) if f"q_star[{i}]" not in columns]
         if missing:
             raise MotionError(f"{source}: missing column(s) {missing}")
@@ -214,8 +216,7 @@ class Cycloid:
 class CycloidMotion:
     """Per joint a sequence of :class:`Cycloid` segments (empty: the joint holds ``hold[i]``)."""
 
-    def __init__(self, segments: list, hold: list, source: str, stop_time: float | None = None,
-                 settle: float = SETTLE):
+    def __init__(self, segments: list, hold: list, source: str, stop_time: float | None = None, settle: float = SETTLE):
         self.segments = segments  # per joint: a list of Cycloid, in time order
         self.hold = hold  # per joint: the value held when it has no segment
         self.joints = len(segments)
@@ -241,8 +242,10 @@ class CycloidMotion:
 
     def describe(self) -> str:
         moving = [i + 1 for i, s in enumerate(self.segments) if s]
-        return (f"{self.source}: {self.joints} joints, cycloids on joint(s) {moving or 'none'}, "
-                f"at rest from t = {self.end_time:g} s")
+        return (
+            f"{self.source}: {self.joints} joints, cycloids on joint(s) {moving or 'none'}, "
+            f"at rest from t = {self.end_time:g} s"
+        )
 
 
 class SplineMotion:
@@ -261,8 +264,9 @@ class SplineMotion:
     its last value, with zero rates.
     """
 
-    def __init__(self, time, q, source: str, boundary: str = "not-a-knot", stop_time: float | None = None,
-                 settle: float = SETTLE):
+    def __init__(
+        self, time, q, source: str, boundary: str = "not-a-knot", stop_time: float | None = None, settle: float = SETTLE
+    ):
         from scipy.interpolate import CubicSpline
 
         self.time = np.ascontiguousarray(time, dtype=np.float64)
@@ -293,8 +297,10 @@ class SplineMotion:
         return q.tolist(), qd.tolist(), qdd.tolist()
 
     def describe(self) -> str:
-        return (f"{self.source}: {self.joints} joints, {len(self.time)} samples over "
-                f"[{self.time[0]:g}, {self.time[-1]:g}] s, cubic spline ({self.boundary} ends)")
+        return (
+            f"{self.source}: {self.joints} joints, {len(self.time)} samples over "
+            f"[{self.time[0]:g}, {self.time[-1]:g}] s, cubic spline ({self.boundary} ends)"
+        )
 
 
 def _number(value, what: str, where: str) -> float:
@@ -311,7 +317,9 @@ def _cycloid(entry, what: str, where: str) -> Cycloid:
         raise MotionError(f"{where}: {what}: unknown key(s) {unknown}; a cycloid has {list(CYCLOID_KEYS)}")
     missing = [k for k in CYCLOID_KEYS if k not in entry]
     if missing:
-        raise MotionError(f"{where}: {what}: missing {missing}; a cycloid is {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}")
+        raise MotionError(
+            f"{where}: {what}: missing {missing}; a cycloid is {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}"
+        )
     c = Cycloid(*(_number(entry[k], f"{what}.{k}", where) for k in CYCLOID_KEYS))
     if not c.t1 > c.t0:
         raise MotionError(f"{where}: {what}: t1 = {c.t1:g} s must be later than t0 = {c.t0:g} s")
@@ -323,25 +331,31 @@ def _cycloid(entry, what: str, where: str) -> Cycloid:
 def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> int:
     what = f"[[joint]] #{k}"
     if "index" not in entry and "name" not in entry:
-        raise MotionError(f"{where}: {what}: give its `index` (1..{joints}, chain order)"
-                          + (" or its `name`" if names else ""))
+        raise MotionError(
+            f"{where}: {what}: give its `index` (1..{joints}, chain order)" + (" or its `name`" if names else "")
+        )
     index = None
     if "index" in entry:
         index = entry["index"]
         if not isinstance(index, int) or isinstance(index, bool):
             raise MotionError(f"{where}: {what}: index = {index!r}: must be a whole number 1..{joints}")
         if not 1 <= index <= joints:
-            raise MotionError(f"{where}: {what}: unknown joint index {index}: the FMU has {joints} joints "
-                              f"(index 1..{joints}, chain order)")
+            raise MotionError(
+                f"{where}: {what}: unknown joint index {index}: the FMU has {joints} joints "
+                f"(index 1..{joints}, chain order)"
+            )
     if "name" in entry:
         name = entry["name"]
         by_name = {v: i for i, v in names.items()}
         if not names:
-            raise MotionError(f"{where}: {what}: name = {name!r}: the FMU names no joints; give `index` "
-                              f"(1..{joints}, chain order)")
+            raise MotionError(
+                f"{where}: {what}: name = {name!r}: the FMU names no joints; give `index` (1..{joints}, chain order)"
+            )
         if name not in by_name:
-            raise MotionError(f"{where}: {what}: unknown joint name {name!r}; the FMU's joints are "
-                              + ", ".join(f"{i} {names[i]!r}" for i in sorted(names)))
+            raise MotionError(
+                f"{where}: {what}: unknown joint name {name!r}; the FMU's joints are "
+                + ", ".join(f"{i} {names[i]!r}" for i in sorted(names))
+            )
         if index is not None and by_name[name] != index:
             raise MotionError(f"{where}: {what}: index = {index} but name = {name!r} is joint {by_name[name]}")
         index = by_name[name]
@@ -363,8 +377,9 @@ def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle)
             raise MotionError(f"{where}: {what} is given twice ([[joint]] #{seen[i]} and #{k})")
         seen[i] = k
         if "cycloid" in entry and "hold" in entry:
-            raise MotionError(f"{where}: {what}: give either `cycloid` or `hold` (a cycloid starts at its q0 "
-                              f"and holds it until t0)")
+            raise MotionError(
+                f"{where}: {what}: give either `cycloid` or `hold` (a cycloid starts at its q0 and holds it until t0)"
+            )
         if "hold" in entry:
             hold[i - 1] = _number(entry["hold"], f"{what}: hold", where)
         if "cycloid" in entry:
@@ -372,16 +387,22 @@ def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle)
             raw = raw if isinstance(raw, list) else [raw]
             if not raw:
                 raise MotionError(f"{where}: {what}: cycloid = []: give at least one segment")
-            segs = [_cycloid(c, f"{what}: cycloid" + (f" #{m}" if len(raw) > 1 else ""), where)
-                    for m, c in enumerate(raw, 1)]
+            segs = [
+                _cycloid(c, f"{what}: cycloid" + (f" #{m}" if len(raw) > 1 else ""), where)
+                for m, c in enumerate(raw, 1)
+            ]
             for m in range(1, len(segs)):
                 a, b = segs[m - 1], segs[m]
                 if b.t0 < a.t1:
-                    raise MotionError(f"{where}: {what}: cycloid #{m + 1} starts at t0 = {b.t0:g} s, before "
-                                      f"cycloid #{m} ends (t1 = {a.t1:g} s); segments must follow in time")
+                    raise MotionError(
+                        f"{where}: {what}: cycloid #{m + 1} starts at t0 = {b.t0:g} s, before "
+                        f"cycloid #{m} ends (t1 = {a.t1:g} s); segments must follow in time"
+                    )
                 if b.q0 != a.q1:
-                    raise MotionError(f"{where}: {what}: cycloid #{m + 1} starts at q0 = {b.q0!r} but cycloid "
-                                      f"#{m} ends at q1 = {a.q1!r}; q* would jump")
+                    raise MotionError(
+                        f"{where}: {what}: cycloid #{m + 1} starts at q0 = {b.q0!r} but cycloid "
+                        f"#{m} ends at q1 = {a.q1!r}; q* would jump"
+                    )
             segments[i - 1] = segs
             hold[i - 1] = segs[0].q0
     return CycloidMotion(segments, hold, where, stop, settle)
@@ -390,8 +411,11 @@ def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle)
 def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop, settle) -> SplineMotion:
     try:
         with open(path, newline="") as f:
-            rows = [(n, r) for n, r in enumerate(csv.reader(f), 1)
-                    if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+            rows = [
+                (n, r)
+                for n, r in enumerate(csv.reader(f), 1)
+                if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")
+            ]
     except OSError as e:
         raise MotionError(f"{where}: csv {str(path)!r}: {e.strerror}") from None
     except (UnicodeDecodeError, csv.Error) as e:
@@ -402,18 +426,24 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
         raise MotionError(f"{src}: empty; expected a header row {', '.join(expected)} and the samples")
     header = [h.strip() for h in rows[0][1]]
     if len(header) != joints + 1:
-        raise MotionError(f"{src}: {len(header)} columns, expected {joints + 1} (t and one per joint of the "
-                          f"FMU's {joints}): {', '.join(expected)}")
+        raise MotionError(
+            f"{src}: {len(header)} columns, expected {joints + 1} (t and one per joint of the "
+            f"FMU's {joints}): {', '.join(expected)}"
+        )
     if header[0] not in ("t", "time"):
-        raise MotionError(f"{src}: the first column must be the time `t` (s); the header is {header}"
-                          + (" (a header row is required)" if _is_number(header[0]) else ""))
+        raise MotionError(
+            f"{src}: the first column must be the time `t` (s); the header is {header}"
+            + (" (a header row is required)" if _is_number(header[0]) else "")
+        )
     column_of = {}  # joint index -> column
     for col, h in enumerate(header[1:], 1):
         m = re.fullmatch(r"q_star\[(\d+)\]", h)
         i = int(m.group(1)) if m else {v: k for k, v in names.items()}.get(h)
         if i is None or not 1 <= i <= joints:
-            raise MotionError(f"{src}: unknown column {h!r}; the columns are t, then q_star[1]..q_star[{joints}]"
-                              + (f" or the joint names {[names[k] for k in sorted(names)]}" if names else ""))
+            raise MotionError(
+                f"{src}: unknown column {h!r}; the columns are t, then q_star[1]..q_star[{joints}]"
+                + (f" or the joint names {[names[k] for k in sorted(names)]}" if names else "")
+            )
         if i in column_of:
             raise MotionError(f"{src}: joint {i} has two columns ({header[column_of[i]]!r} and {h!r})")
         column_of[i] = col
@@ -427,15 +457,18 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
             raise MotionError(f"{src}, line {line}: not a number in {r}") from None
         bad = [header[j] for j, x in enumerate(values) if not math.isfinite(x)]
         if bad:
-            raise MotionError(f"{src}, line {line}: {bad[0]} = {r[header.index(bad[0])].strip()}: "
-                              f"must be a finite number")
+            raise MotionError(
+                f"{src}, line {line}: {bad[0]} = {r[header.index(bad[0])].strip()}: must be a finite number"
+            )
         data.append((line, values))
     if len(data) < 2:
         raise MotionError(f"{src}: {len(data)} sample(s); a motion needs at least 2")
     for (l0, a), (l1, b) in zip(data, data[1:]):
         if not b[0] > a[0]:
-            raise MotionError(f"{src}, line {l1}: t = {b[0]!r} s is not later than t = {a[0]!r} s on line {l0}; "
-                              f"the time column must increase strictly")
+            raise MotionError(
+                f"{src}, line {l1}: t = {b[0]!r} s is not later than t = {a[0]!r} s on line {l0}; "
+                f"the time column must increase strictly"
+            )
     table = np.array([v for _, v in data], dtype=np.float64)
     q = table[:, [column_of[i] for i in range(1, joints + 1)]]
     return SplineMotion(table[:, 0], q, src, boundary, stop, settle)
@@ -459,8 +492,10 @@ def load_motion(path, joints: int, names: dict | None = None):
     names = names or {}
     where = f"motion file {path}"
     if path.suffix.lower() == ".csv":
-        raise MotionError(f"{where}: a motion file is TOML; for a CSV of t, q_star[1..{joints}] write a file "
-                          f"motion.toml with the line  csv = \"{path.name}\"  next to it (docs/motion.md)")
+        raise MotionError(
+            f"{where}: a motion file is TOML; for a CSV of t, q_star[1..{joints}] write a file "
+            f'motion.toml with the line  csv = "{path.name}"  next to it (docs/motion.md)'
+        )
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -496,7 +531,7 @@ def load_motion(path, joints: int, names: dict | None = None):
     if "boundary" in doc:
         raise MotionError(f"{where}: `boundary` applies to a `csv` motion only")
     if "joint" not in doc:
-        raise MotionError(f"{where}: no motion: give [[joint]] entries (cycloid or hold) or csv = \"file.csv\"")
+        raise MotionError(f'{where}: no motion: give [[joint]] entries (cycloid or hold) or csv = "file.csv"')
     return _joint_motion(doc, joints, names, where, stop, settle)
 
 
@@ -510,9 +545,11 @@ def load_motion_for(path, md):
     moved = [i for i in moving_joints(motion) if i in motors]
     if moved:
         i = moved[0]
-        raise MotionError(f"{motion.source}: joint {i} has a motor drive: the FMU ignores its q_star while "
-                          f"stepping (it is only the start position), the motor torque tau_m[{i}] drives it; "
-                          f"give joint {i} a `hold` (its start position) and set tau_m[{i}] instead")
+        raise MotionError(
+            f"{motion.source}: joint {i} has a motor drive: the FMU ignores its q_star while "
+            f"stepping (it is only the start position), the motor torque tau_m[{i}] drives it; "
+            f"give joint {i} a `hold` (its start position) and set tau_m[{i}] instead"
+        )
     return motion
 
 

@@ -45,8 +45,15 @@ from .fmu import DEFAULT_FMU, ROOT, LogCapture, communication_points, initialize
 from .motion import RUN_TIME, MotionError, load_motion_for, motor_joints, reference_inputs
 
 
-def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, parameters: dict | None = None,
-        inputs=reference_inputs, progress: str | None = None, motion=None) -> dict:
+def run(
+    fmu=DEFAULT_FMU,
+    end: float | None = RUN_TIME,
+    interval: float = 1e-3,
+    parameters: dict | None = None,
+    inputs=reference_inputs,
+    progress: str | None = None,
+    motion=None,
+) -> dict:
     """Simulates ``end`` seconds in communication steps of ``interval``.
 
     ``parameters`` maps FMU variable names (``mu_k[3]``, ``h_max``, ...) to
@@ -72,8 +79,9 @@ def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, p
     real_out = [v for v in outputs if v.type == "Real"]
     bool_out = [v for v in outputs if v.type == "Boolean"]
     unzipdir = extract(fmu, tempfile.mkdtemp(prefix="stickslip_"))
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName="run")
+    slave = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="run"
+    )
     real_vrs = [v.valueReference for v in real_out]
     bool_vrs = [v.valueReference for v in bool_out]
     rows = []
@@ -92,8 +100,12 @@ def run(fmu=DEFAULT_FMU, end: float | None = RUN_TIME, interval: float = 1e-3, p
         for k, t in communication_points(slave, in_vrs, inputs, end, interval):
             record(t)
             if progress and k % max(1, steps // 10) == 0:
-                print(f"\r{progress}: t = {t:.3f} s of {end} s "
-                      f"({time.perf_counter() - wall:.1f} s wall)", end="", file=sys.stderr, flush=True)
+                print(
+                    f"\r{progress}: t = {t:.3f} s of {end} s ({time.perf_counter() - wall:.1f} s wall)",
+                    end="",
+                    file=sys.stderr,
+                    flush=True,
+                )
         if progress:
             print(file=sys.stderr)
         slave.terminate()
@@ -123,18 +135,34 @@ def write_csv(result: dict, path) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
     p.add_argument("--out", default=str(ROOT / "results" / "reference.csv"))
-    p.add_argument("--motion", metavar="MOTION.toml", help="drive the FMU with this motion file (docs/motion.md: "
-                   "per joint a cycloid or a hold, or a CSV of t, q_star[1..n]); default: the reference arm's cycloids")
-    p.add_argument("--end", type=float, default=None,
-                   help=f"stop time, s (default {RUN_TIME:g}; with --motion the file's `end`, else when it is at "
-                        f"rest plus its `settle`)")
+    p.add_argument(
+        "--motion",
+        metavar="MOTION.toml",
+        help="drive the FMU with this motion file (docs/motion.md: "
+        "per joint a cycloid or a hold, or a CSV of t, q_star[1..n]); default: the reference arm's cycloids",
+    )
+    p.add_argument(
+        "--end",
+        type=float,
+        default=None,
+        help=f"stop time, s (default {RUN_TIME:g}; with --motion the file's `end`, else when it is at "
+        f"rest plus its `settle`)",
+    )
     p.add_argument("--interval", type=float, default=1e-3)
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
-    p.add_argument("--check-convergence", action="store_true",
-                   help="run again with a tenfold tighter error_tolerance (fixed sub-steps: halved), print the "
-                        "relative spread of each metric, warn above --convergence-threshold (docs/convergence.md)")
-    p.add_argument("--convergence-threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
-                   help=f"spread above which a metric is not converged (default {DEFAULT_THRESHOLD:g})")
+    p.add_argument(
+        "--check-convergence",
+        action="store_true",
+        help="run again with a tenfold tighter error_tolerance (fixed sub-steps: halved), print the "
+        "relative spread of each metric, warn above --convergence-threshold (docs/convergence.md)",
+    )
+    p.add_argument(
+        "--convergence-threshold",
+        type=float,
+        default=DEFAULT_THRESHOLD,
+        metavar="T",
+        help=f"spread above which a metric is not converged (default {DEFAULT_THRESHOLD:g})",
+    )
 
 
 def main(a: argparse.Namespace) -> int:
@@ -151,8 +179,9 @@ def main(a: argparse.Namespace) -> int:
                 raise ValueError
             parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
         except ValueError:
-            print(f"stickslip simulate: --set {item!r}: expected NAME=VALUE with a number, true or false",
-                  file=sys.stderr)
+            print(
+                f"stickslip simulate: --set {item!r}: expected NAME=VALUE with a number, true or false", file=sys.stderr
+            )
             return 2
     inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
     if a.motion is not None:
@@ -178,8 +207,10 @@ def main(a: argparse.Namespace) -> int:
         return 2
     simulated = time.perf_counter()
     write_csv(result, a.out)
-    print(f"simulated {end} s through {a.fmu} in {simulated - wall:.2f} s wall "
-          f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s")
+    print(
+        f"simulated {end} s through {a.fmu} in {simulated - wall:.2f} s wall "
+        f"(unpacking and instantiation included); wrote {a.out} in {time.perf_counter() - simulated:.2f} s"
+    )
     if a.check_convergence:
         check = convergence_of(result, a.fmu, end, a.interval, parameters, a.convergence_threshold, inputs)
         path = Path(a.out).with_suffix(".convergence.json")
@@ -207,10 +238,13 @@ def motor_note(fmu, parameters: dict) -> str | None:
     if not motors:
         return None
     start = {v.name: v.start for v in md.modelVariables}
-    torques = ", ".join(f"tau_m[{i}] = {float(parameters.get(f'tau_m[{i}]', start[f'tau_m[{i}]'] or 0.0)):g}"
-                        for i in motors)
-    return (f"motor drives on joints {', '.join(map(str, motors))}: the motion's q* is their start position "
-            f"only; the motors run on {torques} N.m, held constant (--set tau_m[i]=VALUE)")
+    torques = ", ".join(
+        f"tau_m[{i}] = {float(parameters.get(f'tau_m[{i}]', start[f'tau_m[{i}]'] or 0.0)):g}" for i in motors
+    )
+    return (
+        f"motor drives on joints {', '.join(map(str, motors))}: the motion's q* is their start position "
+        f"only; the motors run on {torques} N.m, held constant (--set tau_m[i]=VALUE)"
+    )
 
 
 def motion_of(path, fmu):
@@ -225,8 +259,15 @@ def motion_of(path, fmu):
     return load_motion_for(path, md)
 
 
-def convergence_of(result: dict, fmu, end: float, interval: float, parameters: dict,
-                   threshold: float = DEFAULT_THRESHOLD, inputs=reference_inputs):
+def convergence_of(
+    result: dict,
+    fmu,
+    end: float,
+    interval: float,
+    parameters: dict,
+    threshold: float = DEFAULT_THRESHOLD,
+    inputs=reference_inputs,
+):
     """The convergence check of a :func:`run` result: the same run again with the tightened
     settings (:func:`stickslip.convergence.tightened`), the sweep's metrics of both and their
     spreads; a :class:`stickslip.convergence.Convergence`."""
@@ -259,8 +300,20 @@ def write_convergence(check, path) -> None:
     import math
 
     clean = lambda d: {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}  # noqa: E731
-    Path(path).write_text(json.dumps({
-        "status": check.status, "message": check.message, "rerun": check.rerun, "method": check.method,
-        "threshold": check.threshold, "not_converged": check.not_converged, "metrics": clean(check.metrics),
-        "check_run_metrics": clean(check.tight), "spreads": clean(check.spreads)}, indent=1), encoding="utf-8")
-
+    Path(path).write_text(
+        json.dumps(
+            {
+                "status": check.status,
+                "message": check.message,
+                "rerun": check.rerun,
+                "method": check.method,
+                "threshold": check.threshold,
+                "not_converged": check.not_converged,
+                "metrics": clean(check.metrics),
+                "check_run_metrics": clean(check.tight),
+                "spreads": clean(check.spreads),
+            },
+            indent=1,
+        ),
+        encoding="utf-8",
+    )

@@ -103,18 +103,25 @@ class Spec:
         points = [dict(zip(self.grid, values)) for values in itertools.product(*self.grid.values())]
         if not self.sample:
             return points
-        draws = {name: d.draw(np.random.default_rng([self.seed, zlib.crc32(name.encode())]), self.n)
-                 for name, d in self.sample.items()}
+        draws = {
+            name: d.draw(np.random.default_rng([self.seed, zlib.crc32(name.encode())]), self.n)
+            for name, d in self.sample.items()
+        }
         return [p | {name: float(v[j]) for name, v in draws.items()} for p in points for j in range(self.n)]
 
     def canonical(self) -> dict:
         """What identifies the sweep's results: everything but where the FMU file lies (its
         content is identified by its hash, see :mod:`stickslip.sweep`); a motion file by its content."""
         motion = self.motion if self.motion == "reference" else motion_identity(self.motion)
-        return {"stop_time": self.stop_time, "communication_step": self.communication_step, "motion": motion,
-                "grid": {k: list(v) for k, v in self.grid.items()},
-                "sample": {"n": self.n, "seed": self.seed, **{k: d.as_toml() for k, d in self.sample.items()}}
-                if self.sample else {}}
+        return {
+            "stop_time": self.stop_time,
+            "communication_step": self.communication_step,
+            "motion": motion,
+            "grid": {k: list(v) for k, v in self.grid.items()},
+            "sample": {"n": self.n, "seed": self.seed, **{k: d.as_toml() for k, d in self.sample.items()}}
+            if self.sample
+            else {},
+        }
 
     def digest(self) -> str:
         return hashlib.sha256(json.dumps(self.canonical(), sort_keys=True).encode()).hexdigest()
@@ -147,14 +154,14 @@ def parse(text: str, where: str = "SPEC", overrides: dict | None = None) -> Spec
     if step > stop:
         raise SpecError(f"{where}: communication_step = {step:g} s is longer than stop_time = {stop:g} s")
     if abs(round(stop / step) * step - stop) > 1e-9 * stop:
-        raise SpecError(f"{where}: stop_time = {stop:g} s is not a whole number of communication steps "
-                        f"of {step:g} s")
+        raise SpecError(f"{where}: stop_time = {stop:g} s is not a whole number of communication steps of {step:g} s")
     if overrides.get("motion") is not None:
         doc["motion"] = overrides["motion"]
     motion = doc.get("motion", "reference")
     if not isinstance(motion, str) or not motion:
-        raise SpecError(f"{where}: `motion` = {motion!r}: must be \"reference\" or the path of a motion file "
-                        f"(TOML) or of a CSV table")
+        raise SpecError(
+            f'{where}: `motion` = {motion!r}: must be "reference" or the path of a motion file (TOML) or of a CSV table'
+        )
     if motion != "reference" and not Path(motion).is_file():
         raise SpecError(f"{where}: motion file {motion!r} does not exist")
     fmu = doc.get("fmu", str(DEFAULT_FMU))
@@ -190,7 +197,7 @@ def parse(text: str, where: str = "SPEC", overrides: dict | None = None) -> Spec
         if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
             raise SpecError(f"{where}: [sample] `seed` = {seed!r}: must be a whole number >= 0")
         if not sample:
-            raise SpecError(f"{where}: [sample] draws no parameter: add e.g. \"k[1]\" = {{ uniform = [5e5, 2e6] }}")
+            raise SpecError(f'{where}: [sample] draws no parameter: add e.g. "k[1]" = {{ uniform = [5e5, 2e6] }}')
         sample = {name: _distribution(name, d, where) for name, d in sample.items()}
         both = sorted(set(sample) & set(grid or {}))
         if both:
@@ -231,8 +238,10 @@ def _refusal(v) -> str | None:
     if v.causality != "parameter":
         return f"has causality {v.causality}: only parameters can be swept"
     if v.variability != "tunable":
-        return (f"is a {v.variability} parameter: the sweep varies tunable parameters only "
-                "(the system's properties, not the integrator's settings)")
+        return (
+            f"is a {v.variability} parameter: the sweep varies tunable parameters only "
+            "(the system's properties, not the integrator's settings)"
+        )
     if v.type != "Real":
         return f"is a {v.type} parameter: the sweep varies Real parameters only"
     return None
@@ -245,16 +254,20 @@ def check_against(spec: Spec, model_description) -> None:
     where = spec.where
     motors = motor_joints(model_description)
     if motors:
-        raise SpecError(f"{where}: fmu {spec.fmu} has motor drives on joints {', '.join(map(str, motors))} (inputs "
-                        f"tau_m[i]): a sweep drives the joints through q* only and cannot set the motor torques; "
-                        f"sweep an FMU without motor drives")
+        raise SpecError(
+            f"{where}: fmu {spec.fmu} has motor drives on joints {', '.join(map(str, motors))} (inputs "
+            f"tau_m[i]): a sweep drives the joints through q* only and cannot set the motor torques; "
+            f"sweep an FMU without motor drives"
+        )
     by_name = {v.name: v for v in model_description.modelVariables}
     for name in spec.parameters:
         v = by_name.get(name)
         if v is None:
             close = difflib.get_close_matches(name, by_name, n=3)
-            raise SpecError(f"{where}: unknown variable `{name}`: the FMU has no variable of that name"
-                            + (f" (did you mean {', '.join(close)}?)" if close else ""))
+            raise SpecError(
+                f"{where}: unknown variable `{name}`: the FMU has no variable of that name"
+                + (f" (did you mean {', '.join(close)}?)" if close else "")
+            )
         why = _refusal(v)
         if why:
             raise SpecError(f"{where}: `{name}` {why}")

@@ -74,8 +74,10 @@ DECREASING = {"mu_s": 0.2, "mu_k": 0.12, "v_s": 0.01}  # mu(v) = mu_C + (mu_S - 
 SLIDER_DAMPING = 1e3  # h_1 (N m s/rad), h_3 (N s/m) of Fig. 14
 
 # Columns kept in every case's CSV (the quantities of the summary).
-BASE_COLUMNS = ("eps", *(f"{g}[{j}]" for g in ("eps_joint", "stick", "n_stick", "t_stick", "N_normal")
-                         for j in FLEXIBLE))
+BASE_COLUMNS = (
+    "eps",
+    *(f"{g}[{j}]" for g in ("eps_joint", "stick", "n_stick", "t_stick", "N_normal") for j in FLEXIBLE),
+)
 
 
 @dataclass(frozen=True)
@@ -132,36 +134,65 @@ def study_cases(fixed_step: float | None = None, step_h: float = DEFAULT_STEP_H)
     friction = tuple(Variant(f"μ3 = {mu}", f"mu3={mu}", base | {"mu_k[3]": mu, "mu_s[3]": mu}) for mu in (0.1, 0.2))
     characteristic = (
         Variant("constant μ = 0.2", "constant", base),
-        Variant("decreasing μ(v): μS 0.2, μC 0.12, vS 0.01", "decreasing",
-                base | {f"{p}[{j}]": v for j in FLEXIBLE for p, v in DECREASING.items()}),
+        Variant(
+            "decreasing μ(v): μS 0.2, μC 0.12, vS 0.01",
+            "decreasing",
+            base | {f"{p}[{j}]": v for j in FLEXIBLE for p, v in DECREASING.items()},
+        ),
     )
     clearance = (
         Variant("Δ1 = Δ3 = 0", "no_clearance", base),
-        Variant("Δ1 = π/90 rad, Δ3 = 0.002 m", "clearance",
-                base | {"Delta[1]": CLEARANCE[0], "Delta[3]": CLEARANCE[1]}),
+        Variant(
+            "Δ1 = π/90 rad, Δ3 = 0.002 m", "clearance", base | {"Delta[1]": CLEARANCE[0], "Delta[3]": CLEARANCE[1]}
+        ),
     )
     damped = base | {"h[1]": SLIDER_DAMPING, "h[3]": SLIDER_DAMPING}
     slider = tuple(Variant(f"a3 = {a} m", f"a3={a}", damped | {"slider_a[3]": a}) for a in (0.2, 0.4))
 
     def one_per_variant(quantity, ylabel, variants, scale=1.0, reference=lambda k: ()):
-        return tuple(Panel(quantity, ylabel, (k,), f"{letter} {v.label}", scale, reference(k))
-                     for k, (letter, v) in enumerate(zip(_letters(len(variants)), variants)))
+        return tuple(
+            Panel(quantity, ylabel, (k,), f"{letter} {v.label}", scale, reference(k))
+            for k, (letter, v) in enumerate(zip(_letters(len(variants)), variants))
+        )
 
     return {
-        "step": Case("step", "Fig. 10: influence of the sub-step h on q̇3", step,
-                     one_per_variant("qd[3]", "q̇3 [m/s]", step), stick_joints=(3,), extra_columns=("qd[3]",),
-                     zoom=(1.415, 1.495)),
-        "friction": Case("friction", "Fig. 11: friction coefficient of joint 3 and positioning accuracy ε",
-                         friction, (Panel("eps", "ε [µm]", (0, 1), scale=1e6),)),
-        "characteristic": Case("characteristic", "Fig. 12: constant vs decreasing friction characteristic, ε3",
-                               characteristic, one_per_variant("eps_joint[3]", "ε3 [µm]", characteristic, 1e6)),
-        "clearance": Case("clearance", "Fig. 13: clearance in drives 1 and 3, ε1", clearance,
-                          one_per_variant("eps_joint[1]", "ε1 [mrad]", clearance, 1e3,
-                                          lambda k: (CLEARANCE[0], "Δ1 = π/90") if k else ()),
-                          share_y=False),
-        "slider": Case("slider", f"Fig. 14: slider length a3 (h1 = h3 = {SLIDER_DAMPING:g}), ε and N3", slider,
-                       (Panel("eps", "ε [µm]", (0, 1), scale=1e6), Panel("N_normal[3]", "N3 [N]", (0, 1))),
-                       extra_columns=("F_friction[3]",)),
+        "step": Case(
+            "step",
+            "Fig. 10: influence of the sub-step h on q̇3",
+            step,
+            one_per_variant("qd[3]", "q̇3 [m/s]", step),
+            stick_joints=(3,),
+            extra_columns=("qd[3]",),
+            zoom=(1.415, 1.495),
+        ),
+        "friction": Case(
+            "friction",
+            "Fig. 11: friction coefficient of joint 3 and positioning accuracy ε",
+            friction,
+            (Panel("eps", "ε [µm]", (0, 1), scale=1e6),),
+        ),
+        "characteristic": Case(
+            "characteristic",
+            "Fig. 12: constant vs decreasing friction characteristic, ε3",
+            characteristic,
+            one_per_variant("eps_joint[3]", "ε3 [µm]", characteristic, 1e6),
+        ),
+        "clearance": Case(
+            "clearance",
+            "Fig. 13: clearance in drives 1 and 3, ε1",
+            clearance,
+            one_per_variant(
+                "eps_joint[1]", "ε1 [mrad]", clearance, 1e3, lambda k: (CLEARANCE[0], "Δ1 = π/90") if k else ()
+            ),
+            share_y=False,
+        ),
+        "slider": Case(
+            "slider",
+            f"Fig. 14: slider length a3 (h1 = h3 = {SLIDER_DAMPING:g}), ε and N3",
+            slider,
+            (Panel("eps", "ε [µm]", (0, 1), scale=1e6), Panel("N_normal[3]", "N3 [N]", (0, 1))),
+            extra_columns=("F_friction[3]",),
+        ),
     }
 
 
@@ -185,8 +216,14 @@ def _changed(parameters: dict, fmu) -> tuple:
     return tuple(sorted((k, v) for k, v in parameters.items() if start.get(k) is None or float(start[k]) != v))
 
 
-def simulate(variant: Variant, end: float = RUN_TIME, interval: float = DEFAULT_INTERVAL, fmu=DEFAULT_FMU,
-             progress: str | None = None, motion=None):
+def simulate(
+    variant: Variant,
+    end: float = RUN_TIME,
+    interval: float = DEFAULT_INTERVAL,
+    fmu=DEFAULT_FMU,
+    progress: str | None = None,
+    motion=None,
+):
     """(outputs as numpy arrays, wall seconds) of one variant. Runs that differ from the FMU's
     defaults in the same parameters are done once per process: the reference run appears in
     four cases. ``motion``: a loaded motion file (:func:`stickslip.motion.load_motion`), None
@@ -267,7 +304,8 @@ def measures(r: dict) -> dict:
             "mean_abs_eps": float(np.mean(e)),
             "mean_abs_eps_middle": m,
             "middle_deviation": [float(np.min(e[middle]) / m - 1), float(np.max(e[middle]) / m - 1)]
-            if middle.any() else [float("nan")] * 2,
+            if middle.any()
+            else [float("nan")] * 2,
         }
     return out
 
@@ -289,8 +327,10 @@ def differences(r: dict, ref: dict, joint: int = 3) -> dict:
     relative to max |qd_j| of ref, max |delta eps| (m), and, where both have the same number
     of stiction phases of joint j, the largest shift of a phase's start or end (s)."""
     qd = f"qd[{joint}]"
-    out = {"max_dqd_rel": float(np.max(np.abs(r[qd] - ref[qd])) / np.max(np.abs(ref[qd]))),
-           "max_deps": float(np.max(np.abs(r["eps"] - ref["eps"])))}
+    out = {
+        "max_dqd_rel": float(np.max(np.abs(r[qd] - ref[qd])) / np.max(np.abs(ref[qd]))),
+        "max_deps": float(np.max(np.abs(r["eps"] - ref["eps"]))),
+    }
     a, b = stick_phases(r, joint), stick_phases(ref, joint)
     out["max_phase_shift"] = float(np.max(np.abs(np.array(a) - np.array(b)))) if len(a) == len(b) else None
     return out
@@ -311,56 +351,94 @@ def claims(case: Case, runs: list, m: list) -> list:
             dn = max(abs(x[f"joint{j}"]["n_stick"] - ref[f"joint{j}"]["n_stick"]) for j in FLEXIBLE)
             d = differences(r, runs[-1])
             shift = "n/a" if d["max_phase_shift"] is None else f"{1e6 * d['max_phase_shift']:.0f} µs"
-            out.append(Claim(f"{v.label} vs {case.variants[-1].label}: max |ε| differs by {rel:.1e} (≤ 1e-2), "
-                             f"stick-phase counts by {dn} (≤ 1); max |Δq̇3| = {d['max_dqd_rel']:.1e} of "
-                             f"max |q̇3|, max |Δε| = {d['max_deps']:.1e} m, "
-                             f"joint-3 phase boundaries moved ≤ {shift}",
-                             rel <= 0.01 and dn <= 1))
+            out.append(
+                Claim(
+                    f"{v.label} vs {case.variants[-1].label}: max |ε| differs by {rel:.1e} (≤ 1e-2), "
+                    f"stick-phase counts by {dn} (≤ 1); max |Δq̇3| = {d['max_dqd_rel']:.1e} of "
+                    f"max |q̇3|, max |Δε| = {d['max_deps']:.1e} m, "
+                    f"joint-3 phase boundaries moved ≤ {shift}",
+                    rel <= 0.01 and dn <= 1,
+                )
+            )
         return out
     a, b = m
     if case.name == "friction":
-        return [Claim(f"max ε with μ3 = 0.2 ({b['max_eps']:.3e} m) > with μ3 = 0.1 ({a['max_eps']:.3e} m)",
-                      b["max_eps"] > a["max_eps"])]
+        return [
+            Claim(
+                f"max ε with μ3 = 0.2 ({b['max_eps']:.3e} m) > with μ3 = 0.1 ({a['max_eps']:.3e} m)",
+                b["max_eps"] > a["max_eps"],
+            )
+        ]
     if case.name == "characteristic":
         na, nb = a["joint3"]["n_stick"], b["joint3"]["n_stick"]
         va, vb = a["joint3"]["vibration"], b["joint3"]["vibration"]
-        return [Claim(f"stick phases in joint 3: decreasing {nb} > constant {na}", nb > na),
-                Claim(f"vibration of ε3 (std about its {1e3 * MOVING_MEAN:.0f} ms moving mean, 0-{MOTION_TIME} s): "
-                      f"decreasing {vb:.3e} m > constant {va:.3e} m", vb > va)]
+        return [
+            Claim(f"stick phases in joint 3: decreasing {nb} > constant {na}", nb > na),
+            Claim(
+                f"vibration of ε3 (std about its {1e3 * MOVING_MEAN:.0f} ms moving mean, 0-{MOTION_TIME} s): "
+                f"decreasing {vb:.3e} m > constant {va:.3e} m",
+                vb > va,
+            ),
+        ]
     if case.name == "clearance":
         ma, mb = a["joint1"]["mean_abs_eps"], b["joint1"]["mean_abs_eps"]
         lo, hi = b["joint1"]["middle_deviation"]
-        return [Claim(f"mean |ε1| with clearance {mb:.3e} rad ≥ 100 × without ({ma:.3e} rad)", mb >= 100 * ma),
-                Claim(f"mean |ε1| with clearance is of the order of Δ1 = {CLEARANCE[0]:.4f} rad "
-                      f"(0.5 Δ1 … 1.5 Δ1): {mb / CLEARANCE[0]:.2f} Δ1", 0.5 <= mb / CLEARANCE[0] <= 1.5),
-                Claim(f"|ε1| over {MIDDLE[0]}-{MIDDLE[1]} s stays within ±25 % of its mean there "
-                      f"({b['joint1']['mean_abs_eps_middle']:.3e} rad): {100 * lo:+.1f} % … {100 * hi:+.1f} %",
-                      -0.25 <= lo and hi <= 0.25)]
+        return [
+            Claim(f"mean |ε1| with clearance {mb:.3e} rad ≥ 100 × without ({ma:.3e} rad)", mb >= 100 * ma),
+            Claim(
+                f"mean |ε1| with clearance is of the order of Δ1 = {CLEARANCE[0]:.4f} rad "
+                f"(0.5 Δ1 … 1.5 Δ1): {mb / CLEARANCE[0]:.2f} Δ1",
+                0.5 <= mb / CLEARANCE[0] <= 1.5,
+            ),
+            Claim(
+                f"|ε1| over {MIDDLE[0]}-{MIDDLE[1]} s stays within ±25 % of its mean there "
+                f"({b['joint1']['mean_abs_eps_middle']:.3e} rad): {100 * lo:+.1f} % … {100 * hi:+.1f} %",
+                -0.25 <= lo and hi <= 0.25,
+            ),
+        ]
     if case.name == "slider":
-        return [Claim(f"peak N3 with a3 = 0.4 ({b['joint3']['max_N_normal']:.1f} N) < with 0.2 "
-                      f"({a['joint3']['max_N_normal']:.1f} N)",
-                      b["joint3"]["max_N_normal"] < a["joint3"]["max_N_normal"]),
-                Claim(f"peak |F_friction3| with a3 = 0.4 ({b['joint3']['max_abs_F_friction']:.1f} N) < with 0.2 "
-                      f"({a['joint3']['max_abs_F_friction']:.1f} N)",
-                      b["joint3"]["max_abs_F_friction"] < a["joint3"]["max_abs_F_friction"]),
-                Claim(f"max ε with a3 = 0.4 ({b['max_eps']:.3e} m) < with 0.2 ({a['max_eps']:.3e} m)",
-                      b["max_eps"] < a["max_eps"])]
+        return [
+            Claim(
+                f"peak N3 with a3 = 0.4 ({b['joint3']['max_N_normal']:.1f} N) < with 0.2 "
+                f"({a['joint3']['max_N_normal']:.1f} N)",
+                b["joint3"]["max_N_normal"] < a["joint3"]["max_N_normal"],
+            ),
+            Claim(
+                f"peak |F_friction3| with a3 = 0.4 ({b['joint3']['max_abs_F_friction']:.1f} N) < with 0.2 "
+                f"({a['joint3']['max_abs_F_friction']:.1f} N)",
+                b["joint3"]["max_abs_F_friction"] < a["joint3"]["max_abs_F_friction"],
+            ),
+            Claim(
+                f"max ε with a3 = 0.4 ({b['max_eps']:.3e} m) < with 0.2 ({a['max_eps']:.3e} m)",
+                b["max_eps"] < a["max_eps"],
+            ),
+        ]
     raise KeyError(case.name)
 
 
-def run_case(case: Case, end: float = RUN_TIME, interval: float = DEFAULT_INTERVAL, fmu=DEFAULT_FMU,
-             progress: bool = False, motion=None) -> dict:
+def run_case(
+    case: Case,
+    end: float = RUN_TIME,
+    interval: float = DEFAULT_INTERVAL,
+    fmu=DEFAULT_FMU,
+    progress: bool = False,
+    motion=None,
+) -> dict:
     """Runs every variant of ``case``; returns {"runs": [...], "measures": [...], "claims": [...],
     "wall": [...]} (wall 0 for a run reused from an earlier case)."""
     runs, walls = [], []
     for k, v in enumerate(case.variants):
         label = f"  {case.name} {k + 1}/{len(case.variants)} ({v.label})"
         # simulate.run's running line rewrites itself with \r: only for a terminal
-        r, wall = simulate(v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None,
-                           motion=motion)
+        r, wall = simulate(
+            v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None, motion=motion
+        )
         if progress:
-            print(f"{label}: " + (f"{wall:.1f} s wall" if wall else "reused") + f", max ε {np.max(r['eps']):.3e} m, "
-                  "n_stick " + ", ".join(str(int(r[f"n_stick[{j}]"][-1])) for j in FLEXIBLE), flush=True)
+            print(
+                f"{label}: " + (f"{wall:.1f} s wall" if wall else "reused") + f", max ε {np.max(r['eps']):.3e} m, "
+                "n_stick " + ", ".join(str(int(r[f"n_stick[{j}]"][-1])) for j in FLEXIBLE),
+                flush=True,
+            )
         runs.append(r)
         walls.append(wall)
     m = [measures(r) for r in runs]
@@ -388,8 +466,10 @@ def _note(quantity: str, m: dict) -> str:
     if quantity.startswith("eps_joint["):
         j = m[f"joint{quantity[-2]}"]
         unit = "rad" if quantity[-2] == "1" else "m"
-        return (f"max |ε{quantity[-2]}| = {j['max_abs_eps']:.3e} {unit}, mean |ε{quantity[-2]}| = "
-                f"{j['mean_abs_eps']:.3e} {unit}, vibration {j['vibration']:.2e} {unit}")
+        return (
+            f"max |ε{quantity[-2]}| = {j['max_abs_eps']:.3e} {unit}, mean |ε{quantity[-2]}| = "
+            f"{j['mean_abs_eps']:.3e} {unit}, vibration {j['vibration']:.2e} {unit}"
+        )
     return f"max ε = {m['max_eps']:.4e} m, final ε = {m['final_eps']:.4e} m"
 
 
@@ -405,19 +485,25 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
     rows = [(k, j) for k in range(len(case.variants)) for j in case.stick_joints]
     bar_height = 0.22 * len(rows) + 0.35
     heights = [2.2 if len(case.panels) < 3 else 1.45] * len(case.panels) + [bar_height] * (1 + bool(case.zoom))
-    fig, axes = plt.subplots(len(heights), 1, figsize=(10, sum(heights) + 1.3),
-                             gridspec_kw={"height_ratios": heights}, layout="constrained")
+    fig, axes = plt.subplots(
+        len(heights), 1, figsize=(10, sum(heights) + 1.3), gridspec_kw={"height_ratios": heights}, layout="constrained"
+    )
     n = len(case.panels)
     panels = axes[:n]
-    for ax in axes[1:n + 1]:
+    for ax in axes[1 : n + 1]:
         ax.sharex(axes[0])
     for ax in axes[:n]:
         ax.tick_params(labelbottom=False)
     for ax, p in zip(panels, case.panels):
         for k in p.variants:
             r = runs[k]
-            ax.plot(r["time"], p.scale * r[p.quantity], color=colors[k], lw=0.9,
-                    label=f"{_letters(len(case.variants))[k]} {case.variants[k].label}")
+            ax.plot(
+                r["time"],
+                p.scale * r[p.quantity],
+                color=colors[k],
+                lw=0.9,
+                label=f"{_letters(len(case.variants))[k]} {case.variants[k].label}",
+            )
         if p.reference:
             ax.axhline(p.scale * p.reference[0], color="0.3", ls="--", lw=0.9, label=p.reference[1])
         ax.set_ylabel(p.ylabel)
@@ -437,11 +523,18 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
     for ax, span in zip(axes[n:], [(t[0], t[-1]), case.zoom]):
         for row, (k, j) in enumerate(rows):
             # an edge as wide as a line keeps phases of a few µs visible
-            ax.broken_barh([(a, b - a) for a, b in stick_phases(runs[k], j)], (row - 0.32, 0.64),
-                           facecolors=colors[k], edgecolors=colors[k], linewidth=0.7)
+            ax.broken_barh(
+                [(a, b - a) for a, b in stick_phases(runs[k], j)],
+                (row - 0.32, 0.64),
+                facecolors=colors[k],
+                edgecolors=colors[k],
+                linewidth=0.7,
+            )
         ax.set_yticks(range(len(rows)))
-        ax.set_yticklabels([f"{_letters(len(case.variants))[k]} joint {j}: {m[k][f'joint{j}']['n_stick']}"
-                            for k, j in rows], fontsize=8)
+        ax.set_yticklabels(
+            [f"{_letters(len(case.variants))[k]} joint {j}: {m[k][f'joint{j}']['n_stick']}" for k, j in rows],
+            fontsize=8,
+        )
         ax.set_ylim(len(rows) - 0.5, -0.5)
         ax.set_xlim(*span)
         ax.grid(True, axis="x", alpha=0.3)
@@ -455,21 +548,31 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
 
 
 def summary_markdown(results: dict, settings: dict) -> str:
-    stepping = ("error-controlled sub-steps" if settings["fixed_step"] is None
-                else f"fixed sub-steps of {settings['fixed_step']:g} s")
-    lines = [f"# Study results ({stepping}, communication interval "
-             f"{settings['interval']:g} s, {settings['end']:g} s)", ""]
+    stepping = (
+        "error-controlled sub-steps"
+        if settings["fixed_step"] is None
+        else f"fixed sub-steps of {settings['fixed_step']:g} s"
+    )
+    lines = [
+        f"# Study results ({stepping}, communication interval {settings['interval']:g} s, {settings['end']:g} s)",
+        "",
+    ]
     for name, res in results.items():
-        lines += [f"## {name}", "",
-                  "| variant | max ε [m] | final ε [m] | n_stick 1, 3 | t_stick 1, 3 [s] | max N 1, 3 [N] "
-                  "| max \\|ε1\\|, \\|ε3\\| | vibration ε3 [m] | wall [s] |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+        lines += [
+            f"## {name}",
+            "",
+            "| variant | max ε [m] | final ε [m] | n_stick 1, 3 | t_stick 1, 3 [s] | max N 1, 3 [N] "
+            "| max \\|ε1\\|, \\|ε3\\| | vibration ε3 [m] | wall [s] |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
         for v, m, w in zip(res["variants"], res["measures"], res["wall"]):
             j1, j3 = m["joint1"], m["joint3"]
-            lines.append(f"| {v} | {m['max_eps']:.4e} | {m['final_eps']:.4e} | {j1['n_stick']}, {j3['n_stick']} "
-                         f"| {j1['t_stick']:.4f}, {j3['t_stick']:.4f} | {j1['max_N_normal']:.0f}, "
-                         f"{j3['max_N_normal']:.0f} | {j1['max_abs_eps']:.3e}, {j3['max_abs_eps']:.3e} "
-                         f"| {j3['vibration']:.3e} | {w:.1f} |")
+            lines.append(
+                f"| {v} | {m['max_eps']:.4e} | {m['final_eps']:.4e} | {j1['n_stick']}, {j3['n_stick']} "
+                f"| {j1['t_stick']:.4f}, {j3['t_stick']:.4f} | {j1['max_N_normal']:.0f}, "
+                f"{j3['max_N_normal']:.0f} | {j1['max_abs_eps']:.3e}, {j3['max_abs_eps']:.3e} "
+                f"| {j3['vibration']:.3e} | {w:.1f} |"
+            )
         lines.append("")
         lines += [f"- {'holds' if c['holds'] else 'DOES NOT HOLD'}: {c['text']}" for c in res["claims"]]
         lines.append("")
@@ -490,23 +593,41 @@ def motor_refusal(fmu) -> str | None:
         return None
     if not motors:
         return None
-    return (f"{fmu} has motor drives on joints {', '.join(map(str, motors))} (driven by the inputs tau_m[i]): the "
-            f"study's cases prescribe the drive positions q* of flexible drives; use an FMU without motor drives")
+    return (
+        f"{fmu} has motor drives on joints {', '.join(map(str, motors))} (driven by the inputs tau_m[i]): the "
+        f"study's cases prescribe the drive positions q* of flexible drives; use an FMU without motor drives"
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default=str(ROOT / "results" / "study"))
-    p.add_argument("--fixed-step", type=float, default=None,
-                   help="fixed sub-steps of this length for every case but the step case (default: the FMU's error control)")
-    p.add_argument("--step-h", type=float, default=DEFAULT_STEP_H,
-                   help="finest fixed sub-step of the step case, which also runs half of it (default 2e-6 s)")
+    p.add_argument(
+        "--fixed-step",
+        type=float,
+        default=None,
+        help="fixed sub-steps of this length for every case but the step case (default: the FMU's error control)",
+    )
+    p.add_argument(
+        "--step-h",
+        type=float,
+        default=DEFAULT_STEP_H,
+        help="finest fixed sub-step of the step case, which also runs half of it (default 2e-6 s)",
+    )
     p.add_argument("--cases", default=",".join(study_cases()), help="comma-separated subset")
-    p.add_argument("--end", type=float, default=None,
-                   help=f"stop time, s (default {RUN_TIME:g}; with --motion the motion file's stop time)")
+    p.add_argument(
+        "--end",
+        type=float,
+        default=None,
+        help=f"stop time, s (default {RUN_TIME:g}; with --motion the motion file's stop time)",
+    )
     p.add_argument("--interval", type=float, default=DEFAULT_INTERVAL, help="communication interval (s)")
     p.add_argument("--fmu", default=str(DEFAULT_FMU))
-    p.add_argument("--motion", metavar="MOTION.toml", help="run the cases with this motion file (docs/motion.md) "
-                   "instead of the reference motion; the claims are checked over the reference motion's windows")
+    p.add_argument(
+        "--motion",
+        metavar="MOTION.toml",
+        help="run the cases with this motion file (docs/motion.md) "
+        "instead of the reference motion; the claims are checked over the reference motion's windows",
+    )
 
 
 def main(a: argparse.Namespace) -> int:
@@ -546,11 +667,15 @@ def main(a: argparse.Namespace) -> int:
         ok = all(c.holds for c in res["claims"])
         failed += [] if ok else [name]
         reused = sum(1 for w in res["wall"] if w == 0.0)
-        print(f"[{n}/{len(chosen)}] {name}: {sum(res['wall']):.1f} s wall"
-              f"{f' ({reused} reused)' if reused else ''}; max ε "
-              + ", ".join(f"{m['max_eps']:.3e}" for m in res["measures"])
-              + " m; stick phases j3 " + ", ".join(str(m["joint3"]["n_stick"]) for m in res["measures"])
-              + f"; claim {'holds' if ok else 'DOES NOT HOLD'}", flush=True)
+        print(
+            f"[{n}/{len(chosen)}] {name}: {sum(res['wall']):.1f} s wall"
+            f"{f' ({reused} reused)' if reused else ''}; max ε "
+            + ", ".join(f"{m['max_eps']:.3e}" for m in res["measures"])
+            + " m; stick phases j3 "
+            + ", ".join(str(m["joint3"]["n_stick"]) for m in res["measures"])
+            + f"; claim {'holds' if ok else 'DOES NOT HOLD'}",
+            flush=True,
+        )
         summary[name] = {
             "variants": [v.label for v in case.variants],
             "parameters": [v.parameters for v in case.variants],
@@ -561,10 +686,12 @@ def main(a: argparse.Namespace) -> int:
         }
     total = time.perf_counter() - start
     settings["wall"] = total
-    (out / "summary.json").write_text(json.dumps({"settings": settings, "cases": summary}, indent=1,
-                                                 ensure_ascii=False), encoding="utf-8")
+    (out / "summary.json").write_text(
+        json.dumps({"settings": settings, "cases": summary}, indent=1, ensure_ascii=False), encoding="utf-8"
+    )
     (out / "summary.md").write_text(summary_markdown(summary, settings), encoding="utf-8")
-    print(f"study: {len(chosen)} cases in {total:.1f} s wall; wrote {out}/<case>.csv, <case>.png, "
-          f"summary.json, summary.md" + (f"; claims NOT holding: {failed}" if failed else "; every claim holds"))
+    print(
+        f"study: {len(chosen)} cases in {total:.1f} s wall; wrote {out}/<case>.csv, <case>.png, "
+        f"summary.json, summary.md" + (f"; claims NOT holding: {failed}" if failed else "; every claim holds")
+    )
     return 0
-

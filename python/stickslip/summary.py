@@ -81,9 +81,13 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
     shown = varying_metrics(ok, metrics) or metrics[:1]
     rho = sensitivity(ok, params, shown)
     extra = 1 if len(params) > 1 else 0
-    fig, axes = plt.subplots(len(shown), len(params) + extra, squeeze=False,
-                             figsize=(2.6 * (len(params) + extra) + 0.6, 1.9 * len(shown) + 1.0),
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        len(shown),
+        len(params) + extra,
+        squeeze=False,
+        figsize=(2.6 * (len(params) + extra) + 0.6, 1.9 * len(shown) + 1.0),
+        layout="constrained",
+    )
     from .convergence import DEFAULT_THRESHOLD
 
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
@@ -94,11 +98,25 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
         for c, p in enumerate(params):
             ax = axes[r][c]
             good = ok[~bad]
-            ax.scatter(good[p], good[m], s=6 if p in spec.sample else 14, alpha=0.5 if p in spec.sample else 0.8,
-                       lw=0, color="tab:blue")
+            ax.scatter(
+                good[p],
+                good[m],
+                s=6 if p in spec.sample else 14,
+                alpha=0.5 if p in spec.sample else 0.8,
+                lw=0,
+                color="tab:blue",
+            )
             if bad.any():
-                ax.scatter(ok.loc[bad, p], ok.loc[bad, m], s=28, marker="x", lw=1.2, color="tab:orange", zorder=3,
-                           label=f"not converged (spread > {threshold:g})")
+                ax.scatter(
+                    ok.loc[bad, p],
+                    ok.loc[bad, m],
+                    s=28,
+                    marker="x",
+                    lw=1.2,
+                    color="tab:orange",
+                    zorder=3,
+                    label=f"not converged (spread > {threshold:g})",
+                )
             if p in spec.grid:
                 means = ok.groupby(p)[m].mean()
                 ax.plot(means.index, means.to_numpy(), color="tab:red", lw=1.2, marker="o", ms=3, label="mean")
@@ -121,8 +139,9 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
             if r == 0:
                 ax.set_title("sensitivity |Spearman ρ|", fontsize=8)
     counts = ", ".join(f"{n} {s}" for s, n in rows["status"].value_counts().items())
-    title = (f"{len(rows)} variants ({counts}); points: variants with status ok"
-             + ("; red: mean per grid value" if spec.grid else ""))
+    title = f"{len(rows)} variants ({counts}); points: variants with status ok" + (
+        "; red: mean per grid value" if spec.grid else ""
+    )
     if checked(rows):
         n_checked = int((ok["convergence_status"] == "checked").sum())
         title += f"\n{n_checked} checked for convergence; orange x: that metric not converged (spread > {threshold:g})"
@@ -130,9 +149,13 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
     if flagged_any:
         from matplotlib.lines import Line2D
 
-        fig.legend(handles=[Line2D([], [], ls="", marker="x", color="tab:orange",
-                                   label=f"not converged (spread > {threshold:g})")],
-                   loc="outside lower right", fontsize=8)
+        fig.legend(
+            handles=[
+                Line2D([], [], ls="", marker="x", color="tab:orange", label=f"not converged (spread > {threshold:g})")
+            ],
+            loc="outside lower right",
+            fontsize=8,
+        )
     fig.savefig(path, dpi=80)
     plt.close(fig)
 
@@ -150,26 +173,44 @@ def _table(header, rows) -> list:
     return out + ["| " + " | ".join(_fmt(x) for x in r) + " |" for r in rows]
 
 
-def markdown(rows, spec, metrics: list, seconds: float | None = None, threshold: float | None = None,
-             convergence: dict | None = None) -> str:
+def markdown(
+    rows,
+    spec,
+    metrics: list,
+    seconds: float | None = None,
+    threshold: float | None = None,
+    convergence: dict | None = None,
+) -> str:
     from .convergence import DEFAULT_THRESHOLD
 
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
     ok = rows[rows["status"] == "ok"]
     params = spec.parameters
     check = checked(rows)
-    lines = [f"# Sweep: {len(rows)} of {len(spec)} variants", "",
-             f"Reference motion {spec.motion!s}, {spec.stop_time:g} s in communication steps of "
-             f"{spec.communication_step:g} s; FMU {spec.fmu}.", ""]
-    lines += ["| status | variants |", "|---|---|"] + [f"| {s} | {n} |" for s, n in rows["status"].value_counts().items()]
+    lines = [
+        f"# Sweep: {len(rows)} of {len(spec)} variants",
+        "",
+        f"Reference motion {spec.motion!s}, {spec.stop_time:g} s in communication steps of "
+        f"{spec.communication_step:g} s; FMU {spec.fmu}.",
+        "",
+    ]
+    lines += ["| status | variants |", "|---|---|"] + [
+        f"| {s} | {n} |" for s, n in rows["status"].value_counts().items()
+    ]
     busy = rows["wall_s"].sum()
-    lines += ["", f"Compute time: {busy:.1f} s summed over the variants"
-              + (f" and {rows['convergence_wall_s'].sum():.1f} s over their convergence check runs" if check else "")
-              + (f", {seconds:.1f} s wall for the variants run now" if seconds else "") + ".", ""]
+    lines += [
+        "",
+        f"Compute time: {busy:.1f} s summed over the variants"
+        + (f" and {rows['convergence_wall_s'].sum():.1f} s over their convergence check runs" if check else "")
+        + (f", {seconds:.1f} s wall for the variants run now" if seconds else "")
+        + ".",
+        "",
+    ]
     lines += ["## Parameters", ""] + _table(
         ["name", "swept as"],
         [[p, "grid " + ", ".join(f"{v:g}" for v in spec.grid[p])] for p in spec.grid]
-        + [[p, f"{d.kind} ({d.a:g}, {d.b:g}), n = {spec.n}, seed {spec.seed}"] for p, d in spec.sample.items()])
+        + [[p, f"{d.kind} ({d.a:g}, {d.b:g}), n = {spec.n}, seed {spec.seed}"] for p, d in spec.sample.items()],
+    )
     shown = varying_metrics(ok, metrics)
     if check:
         lines += convergence_section(rows, params, metrics, threshold, convergence)
@@ -179,38 +220,61 @@ def markdown(rows, spec, metrics: list, seconds: float | None = None, threshold:
             lines += [f"Not-converged values (spread > {threshold:g}) are included; the last column counts them.", ""]
         lines += _table(
             ["metric", "min", "median", "max"] + (["not converged"] if check else []),
-            [[m, ok[m].min(), ok[m].median(), ok[m].max()] + ([str(int(above(ok, m, threshold).sum()))] if check else [])
-             for m in metrics])
+            [
+                [m, ok[m].min(), ok[m].median(), ok[m].max()]
+                + ([str(int(above(ok, m, threshold).sum()))] if check else [])
+                for m in metrics
+            ],
+        )
     if len(ok) >= 3 and shown:
         rho = sensitivity(ok, params, shown)
         lines += ["", "## Sensitivity: |Spearman rank correlation| over the ok variants", ""]
         if check:
-            lines += [f"Over all {len(ok)} ok variants, the not-converged values (spread > {threshold:g}) "
-                      "included: the column `not converged` counts them per metric (of the checked ones; "
-                      "the unchecked variants may hold more in the same proportion).", ""]
+            lines += [
+                f"Over all {len(ok)} ok variants, the not-converged values (spread > {threshold:g}) "
+                "included: the column `not converged` counts them per metric (of the checked ones; "
+                "the unchecked variants may hold more in the same proportion).",
+                "",
+            ]
         lines += _table(
             ["metric"] + params + ["strongest"] + (["not converged"] if check else []),
-            [[m] + [rho.loc[m, p] for p in params]
-             + [rho.loc[m].astype(float).idxmax() if rho.loc[m].notna().any() else "–"]
-             + ([str(int(above(ok, m, threshold).sum()))] if check else []) for m in shown])
+            [
+                [m]
+                + [rho.loc[m, p] for p in params]
+                + [rho.loc[m].astype(float).idxmax() if rho.loc[m].notna().any() else "–"]
+                + ([str(int(above(ok, m, threshold).sum()))] if check else [])
+                for m in shown
+            ],
+        )
     if len(rows) <= SHOWN_ROWS:
         cols = ["max_eps", "final_eps"] + [m for m in shown if m not in ("max_eps", "final_eps")][:6]
         lines += ["", "## Every variant", ""]
         if check:
-            lines += [f"`converged`: **no** names the metrics whose spread exceeds {threshold:g} (marked ⚠ in "
-                      "the columns shown); `–`: not checked; otherwise the check run's status.", ""]
+            lines += [
+                f"`converged`: **no** names the metrics whose spread exceeds {threshold:g} (marked ⚠ in "
+                "the columns shown); `–`: not checked; otherwise the check run's status.",
+                "",
+            ]
         lines += _table(
             ["run"] + params + ["status"] + cols + (["converged"] if check else []),
-            [[str(int(r["run"]))] + [r[p] for p in params] + [r["status"]]
-             + [_mark(r, c, threshold) if check else r[c] for c in cols]
-             + ([_converged_cell(r, metrics, threshold)] if check else [])
-             for _, r in rows.iterrows()])
+            [
+                [str(int(r["run"]))]
+                + [r[p] for p in params]
+                + [r["status"]]
+                + [_mark(r, c, threshold) if check else r[c] for c in cols]
+                + ([_converged_cell(r, metrics, threshold)] if check else [])
+                for _, r in rows.iterrows()
+            ],
+        )
     bad = rows[rows["status"] != "ok"]
     if len(bad):
         lines += ["", f"## Variants not ok ({len(bad)}; the first 20)", ""] + _table(
             ["run"] + params + ["status", "message"],
-            [[str(int(r["run"]))] + [r[p] for p in params] + [r["status"], r["message"] or ""]
-             for _, r in bad.head(20).iterrows()])
+            [
+                [str(int(r["run"]))] + [r[p] for p in params] + [r["status"], r["message"] or ""]
+                for _, r in bad.head(20).iterrows()
+            ],
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -242,28 +306,38 @@ def convergence_section(rows, params, metrics, threshold: float, convergence: di
     convergence = convergence or {}
     status = rows["convergence_status"].fillna("lost")
     done = rows[status == CHECKED]
-    lines = ["", "## Convergence", "",
-             f"Each checked variant ran a second time with {describe(convergence.get('rerun') or {}) or '?'} "
-             f"({convergence.get('method', '?')}); a metric's spread is |x_tight − x| / max(|x_tight|, |x|), "
-             f"and a metric is **not converged** where it exceeds {threshold:g} ({100 * threshold:g} %). "
-             f"Fraction checked: {convergence.get('fraction', float('nan')):g} "
-             f"({convergence.get('checked', '?')} of {len(rows)} variants, chosen by the SPEC's seed). "
-             "What it means and what can still be concluded: docs/convergence.md.", ""]
+    lines = [
+        "",
+        "## Convergence",
+        "",
+        f"Each checked variant ran a second time with {describe(convergence.get('rerun') or {}) or '?'} "
+        f"({convergence.get('method', '?')}); a metric's spread is |x_tight − x| / max(|x_tight|, |x|), "
+        f"and a metric is **not converged** where it exceeds {threshold:g} ({100 * threshold:g} %). "
+        f"Fraction checked: {convergence.get('fraction', float('nan')):g} "
+        f"({convergence.get('checked', '?')} of {len(rows)} variants, chosen by the SPEC's seed). "
+        "What it means and what can still be concluded: docs/convergence.md.",
+        "",
+    ]
     lines += ["| check | variants |", "|---|---|"] + [f"| {s} | {n} |" for s, n in status.value_counts().items()]
     bad_any = [not_converged_metrics(r, metrics, threshold) for _, r in done.iterrows()]
     n_bad = sum(1 for b in bad_any if b)
-    lines += ["", f"**{n_bad} of {len(done)} checked variants** have at least one metric not converged "
-              f"(spread > {threshold:g}).", ""]
+    lines += [
+        "",
+        f"**{n_bad} of {len(done)} checked variants** have at least one metric not converged (spread > {threshold:g}).",
+        "",
+    ]
     if len(done):
         per = []
         for m in metrics:
             s = done[spread_name(m)].astype(float)
             if s.notna().any() and (done[m] != 0).any():  # not e.g. the stick count of a rigid joint
                 worst = int(done.loc[s.idxmax(), "run"]) if s.max() > 0 else None
-                per.append([m, str(int((s > threshold).sum())), s.median(), s.max(),
-                            str(worst) if worst is not None else "–"])
-        lines += _table(["metric", f"checked variants above {threshold:g}", "median spread", "max spread",
-                         "run of the max"], per)
+                per.append(
+                    [m, str(int((s > threshold).sum())), s.median(), s.max(), str(worst) if worst is not None else "–"]
+                )
+        lines += _table(
+            ["metric", f"checked variants above {threshold:g}", "median spread", "max spread", "run of the max"], per
+        )
         left = [m for m in metrics if not (done[m] != 0).any()]
         if left:
             lines += ["", f"({', '.join(left)}: 0 in every checked variant, left out.)"]
@@ -273,21 +347,42 @@ def convergence_section(rows, params, metrics, threshold: float, convergence: di
         worst = worst[worst["_max"] > threshold].sort_values("_max", ascending=False).head(WORST_ROWS)
         lines += ["", f"### Not converged: the worst {len(worst)} variants", ""] + _table(
             ["run"] + params + ["metrics above the threshold (spread)", "max spread"],
-            [[str(int(r["run"]))] + [r[p] for p in params]
-             + [", ".join(f"{m} {float(r[spread_name(m)]):.3g}" for m in not_converged_metrics(r, metrics, threshold)),
-                r["_max"]] for _, r in worst.iterrows()])
+            [
+                [str(int(r["run"]))]
+                + [r[p] for p in params]
+                + [
+                    ", ".join(
+                        f"{m} {float(r[spread_name(m)]):.3g}" for m in not_converged_metrics(r, metrics, threshold)
+                    ),
+                    r["_max"],
+                ]
+                for _, r in worst.iterrows()
+            ],
+        )
     failed = rows[~status.isin([CHECKED, "not selected", "not run", "lost"])]
     if len(failed):
         lines += ["", f"### Check runs that failed ({len(failed)}; the first 20; their main rows are kept)", ""]
-        lines += _table(["run"] + params + ["check status", "message"],
-                        [[str(int(r["run"]))] + [r[p] for p in params]
-                         + [r["convergence_status"], r["convergence_message"] or ""]
-                         for _, r in failed.head(20).iterrows()])
+        lines += _table(
+            ["run"] + params + ["check status", "message"],
+            [
+                [str(int(r["run"]))]
+                + [r[p] for p in params]
+                + [r["convergence_status"], r["convergence_message"] or ""]
+                for _, r in failed.head(20).iterrows()
+            ],
+        )
     return lines
 
 
-def write(rows, spec, metrics: list, out: Path, seconds: float | None = None, threshold: float | None = None,
-          convergence: dict | None = None) -> None:
+def write(
+    rows,
+    spec,
+    metrics: list,
+    out: Path,
+    seconds: float | None = None,
+    threshold: float | None = None,
+    convergence: dict | None = None,
+) -> None:
     out = Path(out)
     (out / "summary.md").write_text(markdown(rows, spec, metrics, seconds, threshold, convergence), encoding="utf-8")
     plot(rows, spec, metrics, out / "summary.png", threshold)

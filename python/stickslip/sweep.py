@@ -87,8 +87,12 @@ class Check:
 
     def record(self, n: int, seed: int) -> dict:
         """What sweep.json records of the check (part of what identifies the results)."""
-        return {"fraction": self.fraction, "rerun": self.rerun, "method": self.method,
-                "checked": len(selected_runs(n, self.fraction, seed))}
+        return {
+            "fraction": self.fraction,
+            "rerun": self.rerun,
+            "method": self.method,
+            "checked": len(selected_runs(n, self.fraction, seed)),
+        }
 
 
 class ResultStore:
@@ -99,33 +103,52 @@ class ResultStore:
 
         self.out = Path(out)
         self.parts = self.out / "parts"
-        self.record = {"spec_sha256": spec.digest(), "fmu_sha256": fmu_digest, "spec": spec.canonical(),
-                       "variants": len(spec)}
+        self.record = {
+            "spec_sha256": spec.digest(),
+            "fmu_sha256": fmu_digest,
+            "spec": spec.canonical(),
+            "variants": len(spec),
+        }
         if convergence is not None:
             self.record["convergence"] = convergence
         meta = self.out / "sweep.json"
         if meta.exists():
             old = json.loads(meta.read_text(encoding="utf-8"))
             if old.get("fmu_sha256") != fmu_digest:
-                raise SweepError(f"{self.out} holds results of another FMU (sha256 {old.get('fmu_sha256', '?')[:12]}, "
-                                 f"now {fmu_digest[:12]}); use another --out, or remove {self.out}")
+                raise SweepError(
+                    f"{self.out} holds results of another FMU (sha256 {old.get('fmu_sha256', '?')[:12]}, "
+                    f"now {fmu_digest[:12]}); use another --out, or remove {self.out}"
+                )
             if old.get("spec_sha256") != self.record["spec_sha256"]:
-                changed = sorted(k for k in set(old.get("spec", {})) | set(self.record["spec"])
-                                 if old.get("spec", {}).get(k) != self.record["spec"].get(k))
-                raise SweepError(f"{self.out} holds results of another SPEC (changed: {', '.join(changed)}); "
-                                 f"use another --out, or remove {self.out} to start over")
+                changed = sorted(
+                    k
+                    for k in set(old.get("spec", {})) | set(self.record["spec"])
+                    if old.get("spec", {}).get(k) != self.record["spec"].get(k)
+                )
+                raise SweepError(
+                    f"{self.out} holds results of another SPEC (changed: {', '.join(changed)}); "
+                    f"use another --out, or remove {self.out} to start over"
+                )
             if old.get("convergence") != convergence:
-                raise SweepError(f"{self.out} holds results of a sweep {_check_text(old.get('convergence'))}, "
-                                 f"this one is {_check_text(convergence)}; use another --out, or remove "
-                                 f"{self.out} to start over")
+                raise SweepError(
+                    f"{self.out} holds results of a sweep {_check_text(old.get('convergence'))}, "
+                    f"this one is {_check_text(convergence)}; use another --out, or remove "
+                    f"{self.out} to start over"
+                )
         try:
             self.parts.mkdir(parents=True, exist_ok=True)
             meta.write_text(json.dumps(self.record, indent=1), encoding="utf-8")
         except OSError as e:
             raise SweepError(f"cannot write the results into {self.out}: {e.strerror}") from None
-        types = {"run": pa.int64(), "status": pa.string(), "message": pa.string(), "worker": pa.string(),
-                 "finished": pa.timestamp("us", tz="UTC"), "convergence_status": pa.string(),
-                 "convergence_message": pa.string()}
+        types = {
+            "run": pa.int64(),
+            "status": pa.string(),
+            "message": pa.string(),
+            "worker": pa.string(),
+            "finished": pa.timestamp("us", tz="UTC"),
+            "convergence_status": pa.string(),
+            "convergence_message": pa.string(),
+        }
         self.schema = pa.schema([(c, types.get(c, pa.float64())) for c in columns])
         self.waiting = []
         self.last_flush = time.monotonic()
@@ -201,8 +224,15 @@ class Progress:
 
             # a terminal that reports no size (0 x 0) gets 100 x 24: tqdm would draw nothing
             size = shutil.get_terminal_size((100, 24))
-            self.bar = tqdm(total=total, initial=already, unit="variant", file=stream, smoothing=0.05,
-                            ncols=size.columns, nrows=size.lines or 24)
+            self.bar = tqdm(
+                total=total,
+                initial=already,
+                unit="variant",
+                file=stream,
+                smoothing=0.05,
+                ncols=size.columns,
+                nrows=size.lines or 24,
+            )
 
     def update(self, status: str, running: int) -> None:
         self.done += 1
@@ -217,9 +247,12 @@ class Progress:
             elapsed = time.monotonic() - self.start
             rate = self.done / elapsed if elapsed > 0 else float("nan")
             eta = (todo - self.done) / rate if rate > 0 else float("nan")
-            print(f"sweep: {10 * tenth:3d} % ({self.already + self.done}/{self.total} done, "
-                  f"{self.failed} not ok, {running} running), {rate:.2f} variants/s, ETA {eta:.0f} s",
-                  file=self.stream, flush=True)
+            print(
+                f"sweep: {10 * tenth:3d} % ({self.already + self.done}/{self.total} done, "
+                f"{self.failed} not ok, {running} running), {rate:.2f} variants/s, ETA {eta:.0f} s",
+                file=self.stream,
+                flush=True,
+            )
             self.next_tenth = tenth + 1
 
     def close(self) -> None:
@@ -230,8 +263,10 @@ class Progress:
 def _check_text(convergence: dict | None) -> str:
     if not convergence:
         return "without --check-convergence"
-    return (f"with --check-convergence --convergence-fraction {convergence.get('fraction', '?'):g} "
-            f"({describe(convergence.get('rerun') or {})})")
+    return (
+        f"with --check-convergence --convergence-fraction {convergence.get('fraction', '?'):g} "
+        f"({describe(convergence.get('rerun') or {})})"
+    )
 
 
 def _motion(spec: Spec, md):
@@ -265,8 +300,9 @@ def prepare(spec: Spec, out, check: Check | None = None) -> tuple:
     if missing:
         raise SpecError(f"fmu {spec.fmu}: has no output(s) {missing} for the metrics")
     metrics = metric_names(outputs)
-    columns = (["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metrics
-               + ["worker", "finished"])
+    columns = (
+        ["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metrics + ["worker", "finished"]
+    )
     convergence = None
     if check is not None:
         check.resolve(md)
@@ -286,14 +322,27 @@ def _client(scheduler: str | None, workers: int | None):
             return Client(scheduler, timeout="20s"), None
         except (OSError, ValueError) as e:
             raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+    cluster = LocalCluster(
+        n_workers=workers or os.cpu_count() or 1,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
     return Client(cluster), cluster
 
 
-def run_sweep(spec: Spec, out, scheduler: str | None = None, workers: int | None = None,
-              timeout: float | None = None, retries: int = 2, progress_tty: bool | None = None,
-              check: Check | None = None) -> dict:
+def run_sweep(
+    spec: Spec,
+    out,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    timeout: float | None = None,
+    retries: int = 2,
+    progress_tty: bool | None = None,
+    check: Check | None = None,
+) -> dict:
     """Runs the variants of ``spec`` that have no row in ``out`` yet; returns {"rows": the
     consolidated DataFrame, "ran": how many ran now, "interrupted": bool, "seconds": wall time
     from the first task submitted to the last row, "workers": number of worker threads,
@@ -304,19 +353,46 @@ def run_sweep(spec: Spec, out, scheduler: str | None = None, workers: int | None
     done = store.done()
     todo = [i for i in range(len(variants)) if i not in done]
     checked = selected_runs(len(variants), check.fraction, spec.seed) if check is not None else None
-    print(f"sweep: {len(variants)} variants, {len(done)} already in {store.out}, {len(todo)} to run"
-          + (f"; convergence check of {len(checked)} ({check.method})" if check is not None else ""), flush=True)
-    stats = {"ran": 0, "interrupted": False, "seconds": 0.0, "workers": 0, "metrics": metrics,
-             "convergence": store.record.get("convergence")}
+    print(
+        f"sweep: {len(variants)} variants, {len(done)} already in {store.out}, {len(todo)} to run"
+        + (f"; convergence check of {len(checked)} ({check.method})" if check is not None else ""),
+        flush=True,
+    )
+    stats = {
+        "ran": 0,
+        "interrupted": False,
+        "seconds": 0.0,
+        "workers": 0,
+        "metrics": metrics,
+        "convergence": store.record.get("convergence"),
+    }
     if todo:
         task = _task(check, checked, metrics)
         try:
-            _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
-                     progress_tty, stats, task)
+            _execute(
+                spec,
+                store,
+                variants,
+                todo,
+                data,
+                digest,
+                motion,
+                scheduler,
+                workers,
+                timeout,
+                retries,
+                progress_tty,
+                stats,
+                task,
+            )
         except KeyboardInterrupt:
             stats["interrupted"] = True
-            print(f"\nsweep: interrupted; {len(done) + stats['ran']} of {len(variants)} variants in {store.out}. "
-                  "Run the same command again to continue.", file=sys.stderr, flush=True)
+            print(
+                f"\nsweep: interrupted; {len(done) + stats['ran']} of {len(variants)} variants in {store.out}. "
+                "Run the same command again to continue.",
+                file=sys.stderr,
+                flush=True,
+            )
         finally:
             stats["rows"] = store.consolidate()
     else:
@@ -331,8 +407,22 @@ def _task(check: Check | None, checked: set | None, metrics: list):
     return run_checked, lambda run: (metrics, check.rerun if run in checked else None)
 
 
-def _execute(spec, store, variants, todo, data, digest, motion, scheduler, workers, timeout, retries,
-             progress_tty, stats, task=None):
+def _execute(
+    spec,
+    store,
+    variants,
+    todo,
+    data,
+    digest,
+    motion,
+    scheduler,
+    workers,
+    timeout,
+    retries,
+    progress_tty,
+    stats,
+    task=None,
+):
     from distributed import as_completed
 
     client, cluster = _client(scheduler, workers)
@@ -352,15 +442,22 @@ def _execute(spec, store, variants, todo, data, digest, motion, scheduler, worke
 
         function, extra = task or _task(None, None, [])
         # a checked sweep's tasks differ from an unchecked one's (and between check settings)
-        tag = "" if function is not run_checked else "c" + content_hash(
-            json.dumps(store.record.get("convergence"), sort_keys=True).encode())[:6]
+        tag = (
+            ""
+            if function is not run_checked
+            else "c" + content_hash(json.dumps(store.record.get("convergence"), sort_keys=True).encode())[:6]
+        )
 
         def submit(run):
             args = (digest, run, variants[run], spec.stop_time, spec.communication_step, motion)
             args += (*extra(run), timeout) if function is run_checked else (timeout,)
-            f = client.submit(function, *args,
-                              key=f"variant{tag}-{digest[:8]}-{store.record['spec_sha256'][:8]}-{run}",
-                              retries=retries, pure=False)
+            f = client.submit(
+                function,
+                *args,
+                key=f"variant{tag}-{digest[:8]}-{store.record['spec_sha256'][:8]}-{run}",
+                retries=retries,
+                pure=False,
+            )
             pending[f] = run
             return f
 
@@ -373,8 +470,10 @@ def _execute(spec, store, variants, todo, data, digest, motion, scheduler, worke
                 row = f.result()
             except Exception as e:  # noqa: BLE001 -- the task, not the variant, failed
                 if _scheduler_lost(e):
-                    raise SweepError(f"lost the Dask scheduler ({type(e).__name__}: {e}); the finished rows "
-                                     f"are in {store.out}, run the same command again to continue") from None
+                    raise SweepError(
+                        f"lost the Dask scheduler ({type(e).__name__}: {e}); the finished rows "
+                        f"are in {store.out}, run the same command again to continue"
+                    ) from None
                 row = {"run": run, **variants[run], "status": LOST, "message": f"{type(e).__name__}: {e}"}
             store.add(row)
             stats["ran"] += 1

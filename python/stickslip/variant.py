@@ -47,8 +47,13 @@ def _joints(names: tuple) -> tuple:
 def metric_names(output_names) -> list:
     """The metric columns for an FMU with these outputs (from its modelDescription)."""
     joints = _joints(tuple(output_names))
-    return (["max_eps", "final_eps"] + [f"n_stick[{i}]" for i in joints] + [f"t_stick[{i}]" for i in joints]
-            + [f"max_N_normal[{i}]" for i in joints] + ["Q_friction", "W_drive"])
+    return (
+        ["max_eps", "final_eps"]
+        + [f"n_stick[{i}]" for i in joints]
+        + [f"t_stick[{i}]" for i in joints]
+        + [f"max_N_normal[{i}]" for i in joints]
+        + ["Q_friction", "W_drive"]
+    )
 
 
 class _Prepared:
@@ -64,8 +69,9 @@ class _Prepared:
         self.joints = _joints(tuple(outputs))
         self.inputs = input_references(self.md)
         self.sampled = [self.vr("eps")] + [self.vr(f"N_normal[{i}]") for i in self.joints]
-        self.final_names = ([f"n_stick[{i}]" for i in self.joints] + [f"t_stick[{i}]" for i in self.joints]
-                            + ["Q_friction", "W_drive"])
+        self.final_names = (
+            [f"n_stick[{i}]" for i in self.joints] + [f"t_stick[{i}]" for i in self.joints] + ["Q_friction", "W_drive"]
+        )
         self.final = [self.vr(n) for n in self.final_names]
         self.metrics = metric_names(outputs)
 
@@ -78,8 +84,16 @@ def _prepared(unzipdir: str) -> _Prepared:
     return _Prepared(unzipdir)
 
 
-def run_variant(fmu_digest: str, run: int, parameters: dict, stop_time: float, step: float, motion,
-                timeout: float | None = None, fmu_data: bytes | None = None) -> dict:
+def run_variant(
+    fmu_digest: str,
+    run: int,
+    parameters: dict,
+    stop_time: float,
+    step: float,
+    motion,
+    timeout: float | None = None,
+    fmu_data: bytes | None = None,
+) -> dict:
     """The row of one variant: ``run``, the parameters, ``status``, ``message``, ``wall_s``,
     ``cpu_s`` (the worker process's CPU time during the variant), ``t_end``, ``worker`` and
     the metrics. ``motion(t, step)`` gives the inputs; ``fmu_data``
@@ -88,17 +102,31 @@ def run_variant(fmu_digest: str, run: int, parameters: dict, stop_time: float, s
     from fmpy.fmi2 import FMU2Slave
 
     wall, cpu = time.perf_counter(), time.process_time()
-    row = {"run": run, **parameters, "status": "ok", "message": "", "t_end": 0.0,
-           "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    row = {
+        "run": run,
+        **parameters,
+        "status": "ok",
+        "message": "",
+        "t_end": 0.0,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
+    }
     try:
         p = _prepared(unpacked(fmu_data, fmu_digest) if fmu_data is not None else _unpacked_here(fmu_digest))
     except Exception as e:  # noqa: BLE001 -- a row, never a crash
-        return row | {"status": "error", "message": f"FMU not available here: {type(e).__name__}: {e}",
-                      "wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu}
+        return row | {
+            "status": "error",
+            "message": f"FMU not available here: {type(e).__name__}: {e}",
+            "wall_s": time.perf_counter() - wall,
+            "cpu_s": time.process_time() - cpu,
+        }
     row.update(dict.fromkeys(p.metrics, float("nan")))
     log = LogCapture()
-    slave = FMU2Slave(guid=p.md.guid, unzipDirectory=p.unzipdir, modelIdentifier=p.md.coSimulation.modelIdentifier,
-                      instanceName=f"run{run}")
+    slave = FMU2Slave(
+        guid=p.md.guid,
+        unzipDirectory=p.unzipdir,
+        modelIdentifier=p.md.coSimulation.modelIdentifier,
+        instanceName=f"run{run}",
+    )
     sampled = None
     try:
         slave.instantiate(callbacks=log.callbacks)

@@ -30,10 +30,5 @@ pub fn kinetic_energy(model: &Model, data: &Data, qd: &[f64]) -> f64 {
 /// Potential energy of gravity V = −Σ m_i·gᵀ·x_ci, zero at the origin of
 /// frame 0, from the last forward kinematics, J.
 pub fn potential_energy(model: &Model, data: &Data) -> f64 {
-    model
-        .links
-        .iter()
-        .enumerate()
-        .map(|(i, link)| -link.mass * model.gravity.dot(&data.com[i]))
-        .sum()
+    model.links.iter().enumerate().map(|(i, link)| -link.mass * model.gravity.dot(&data.com[i])).sum()
 }

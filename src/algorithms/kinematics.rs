@@ -23,10 +23,8 @@ pub fn joint_transform(joint: &Joint, q: f64) -> Mat4 {
         JointKind::Prismatic => m[(2, 3)] = joint.offset + q,
     }
     let mut p = Mat4::identity();
-    p.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&joint.placement.rotation);
-    p.fixed_view_mut::<3, 1>(0, 3)
-        .copy_from(&joint.placement.translation);
+    p.fixed_view_mut::<3, 3>(0, 0).copy_from(&joint.placement.rotation);
+    p.fixed_view_mut::<3, 1>(0, 3).copy_from(&joint.placement.translation);
     p * m
 }
 
@@ -69,10 +67,7 @@ pub fn update_joint_transforms(model: &Model, data: &mut Data, q: &[f64]) {
         joint_transforms(model, data, q);
         return;
     }
-    let moved = q
-        .iter()
-        .zip(&data.transforms_q)
-        .any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
+    let moved = q.iter().zip(&data.transforms_q).any(|(a, b)| (a - b).abs() > 1e-15 * (1.0 + a.abs()));
     if moved {
         joint_transforms_near_anchors(model, data, q);
     }
@@ -93,16 +88,9 @@ fn record_transforms(data: &mut Data, q: &[f64]) {
 #[inline(always)]
 fn joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool) {
     let n = model.nq();
-    let (rotation, offset, offset_child) = (
-        &mut data.link_rotation[..n],
-        &mut data.link_offset[..n],
-        &mut data.link_offset_child[..n],
-    );
-    let (anchor, local, q) = (
-        &mut data.theta_anchor[..n],
-        &data.origin_in_joint_frame[..n],
-        &q[..n],
-    );
+    let (rotation, offset, offset_child) =
+        (&mut data.link_rotation[..n], &mut data.link_offset[..n], &mut data.link_offset_child[..n]);
+    let (anchor, local, q) = (&mut data.theta_anchor[..n], &data.origin_in_joint_frame[..n], &q[..n]);
     for (i, joint) in model.joints.iter().enumerate().take(n) {
         let placement = &joint.placement;
         match joint.kind {
@@ -112,21 +100,13 @@ fn joint_parts(model: &Model, data: &mut Data, q: &[f64], near_anchors: bool) {
                     sin_cos_near(anchor[i].sin_theta, anchor[i].cos_theta, delta)
                 } else {
                     let (st, ct) = (joint.offset + q[i]).sin_cos();
-                    anchor[i] = ThetaAnchor {
-                        q: q[i],
-                        sin_theta: st,
-                        cos_theta: ct,
-                    };
+                    anchor[i] = ThetaAnchor { q: q[i], sin_theta: st, cos_theta: ct };
                     (st, ct)
                 };
                 // P·Rot_z(θ): the placement's x and y turned by θ, z the axis.
-                let (px, py, pz) = (
-                    placement.rotation.column(0),
-                    placement.rotation.column(1),
-                    placement.rotation.column(2),
-                );
-                rotation[i] =
-                    Mat3::from_columns(&[px * ct + py * st, py * ct - px * st, pz.into_owned()]);
+                let (px, py, pz) =
+                    (placement.rotation.column(0), placement.rotation.column(1), placement.rotation.column(2));
+                rotation[i] = Mat3::from_columns(&[px * ct + py * st, py * ct - px * st, pz.into_owned()]);
                 offset[i] = placement.translation;
                 // Rot_z(θ)ᵀ·(Pᵀ·p).
                 let u = local[i];

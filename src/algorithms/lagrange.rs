@@ -69,8 +69,9 @@ pub fn lagrange_terms(model: &Model, q: &[f64], qd: &[f64]) -> LagrangeTerms {
     let n = model.nq();
     let h: Vec<Mat4> = model.links.iter().map(|l| l.pseudo_inertia()).collect();
     // bs[l][j] = B_l^j (1-based l, j).
-    let bs: Vec<Vec<Mat4>> =
-        (0..=n).map(|l| (0..=n).map(|j| if j == 0 { Mat4::zeros() } else { b_derivative(model, q, l, &[j]) }).collect()).collect();
+    let bs: Vec<Vec<Mat4>> = (0..=n)
+        .map(|l| (0..=n).map(|j| if j == 0 { Mat4::zeros() } else { b_derivative(model, q, l, &[j]) }).collect())
+        .collect();
     let mut mass = MatN::zeros(n, n);
     for s in 1..=n {
         for i in 1..=n {
@@ -95,7 +96,8 @@ pub fn lagrange_terms(model: &Model, q: &[f64], qd: &[f64]) -> LagrangeTerms {
     let g = Vec4::new(model.gravity.x, model.gravity.y, model.gravity.z, 0.0);
     let mut gravity = VecN::zeros(n);
     for s in 1..=n {
-        let b_star: Vec4 = (s..=n).map(|i| bs[i][s] * homogeneous(&model.links[i - 1].com) * model.links[i - 1].mass).sum();
+        let b_star: Vec4 =
+            (s..=n).map(|i| bs[i][s] * homogeneous(&model.links[i - 1].com) * model.links[i - 1].mass).sum();
         gravity[s - 1] = -g.dot(&b_star);
     }
     LagrangeTerms { mass, velocity_terms, gravity }
@@ -116,6 +118,8 @@ pub fn kinetic_energy(model: &Model, q: &[f64], qd: &[f64]) -> f64 {
 pub fn potential_energy(model: &Model, q: &[f64]) -> f64 {
     let g = Vec4::new(model.gravity.x, model.gravity.y, model.gravity.z, 0.0);
     (1..=model.nq())
-        .map(|i| -g.dot(&(b_derivative(model, q, i, &[]) * homogeneous(&model.links[i - 1].com))) * model.links[i - 1].mass)
+        .map(|i| {
+            -g.dot(&(b_derivative(model, q, i, &[]) * homogeneous(&model.links[i - 1].com))) * model.links[i - 1].mass
+        })
         .sum()
 }

@@ -4,6 +4,6 @@
 pub mod crba;
 pub mod energy;
 pub mod kinematics;
-pub mod lu;
 pub mod lagrange;
+pub mod lu;
 pub mod rnea;

@@ -32,7 +32,8 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
     // A check in every build costs 5 % of a sub-step: the hot path keeps it
     // to debug builds (`cargo test` without --release runs it).
     debug_assert!(
-        data.transforms_current && data.transforms_q.iter().zip(q).all(|(a, b)| (a - b).abs() <= 1e-15 * (1.0 + b.abs())),
+        data.transforms_current
+            && data.transforms_q.iter().zip(q).all(|(a, b)| (a - b).abs() <= 1e-15 * (1.0 + b.abs())),
         "rnea: the joint transforms in `data` are not those of `q` (call update_joint_transforms first)"
     );
     let n = model.nq();
@@ -59,7 +60,8 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
     for i in 0..n {
         let (r, p) = (&data.link_rotation[i], data.link_offset_child[i]);
         // Link i−1's motion resolved in link i's frame.
-        let (w_prev, wd_prev, a_prev) = (r.tr_mul(&data.omega[i]), r.tr_mul(&data.omega_dot[i]), r.tr_mul(&data.acceleration[i]));
+        let (w_prev, wd_prev, a_prev) =
+            (r.tr_mul(&data.omega[i]), r.tr_mul(&data.omega_dot[i]), r.tr_mul(&data.acceleration[i]));
         let (w, wd, a) = match model.joints[i].kind {
             JointKind::Revolute => {
                 // ω + z·q̇, ω̇ + z·q̈ + ω × z·q̇ with ω × z = (ω_y, −ω_x, 0); the
@@ -71,7 +73,10 @@ pub fn rnea(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64]) 
             JointKind::Prismatic => {
                 // p turns with link i−1 and grows along the axis z.
                 let axis = Vec3::z();
-                let a = a_prev + axis * qdd[i] + wd_prev.cross(&p) + w_prev.cross(&(w_prev.cross(&p) + axis * (2.0 * qd[i])));
+                let a = a_prev
+                    + axis * qdd[i]
+                    + wd_prev.cross(&p)
+                    + w_prev.cross(&(w_prev.cross(&p) + axis * (2.0 * qd[i])));
                 (w_prev, wd_prev, a)
             }
         };

@@ -34,7 +34,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--model" => model_path = Some(value()?),
             "--states" => states = Some(value()?),
             "--out" => out = Some(value()?),
-            _ => return Err(format!("unknown argument {a} (usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv)").into()),
+            _ => {
+                return Err(format!(
+                    "unknown argument {a} (usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv)"
+                )
+                .into())
+            }
         }
     }
     let usage = "usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv";
@@ -46,7 +51,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let text = std::fs::read_to_string(&states).map_err(|e| format!("cannot read {states}: {e}"))?;
     let n = model.nq();
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header: Vec<&str> = lines.next().ok_or("the states file is empty")?.split(',').map(|s| s.trim().trim_matches('"')).collect();
+    let header: Vec<&str> =
+        lines.next().ok_or("the states file is empty")?.split(',').map(|s| s.trim().trim_matches('"')).collect();
     let column = |name: String| header.iter().position(|h| *h == name).ok_or(format!("{states}: no column `{name}`"));
     let mut columns = Vec::with_capacity(3 * n);
     for base in ["q", "qd", "qdd"] {
@@ -70,7 +76,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     for (row, line) in lines.enumerate() {
         let cells: Vec<&str> = line.split(',').map(str::trim).collect();
         let value = |c: usize| -> Result<f64, String> {
-            let x: f64 = cells.get(c).ok_or(format!("{states}: row {} is short", row + 1))?.parse().map_err(|e| format!("{states}: row {}: {e}", row + 1))?;
+            let x: f64 = cells
+                .get(c)
+                .ok_or(format!("{states}: row {} is short", row + 1))?
+                .parse()
+                .map_err(|e| format!("{states}: row {}: {e}", row + 1))?;
             x.is_finite().then_some(x).ok_or(format!("{states}: row {}: not a finite number", row + 1))
         };
         let v = columns.iter().map(|&c| value(c)).collect::<Result<Vec<f64>, _>>()?;

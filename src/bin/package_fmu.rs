@@ -161,5 +161,6 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn read_library(path: &Path) -> Result<Vec<u8>, String> {
-    std::fs::read(path).map_err(|e| format!("cannot read the library {}: {e} (run `scripts/build_fmu.sh`)", path.display()))
+    std::fs::read(path)
+        .map_err(|e| format!("cannot read the library {}: {e} (run `scripts/build_fmu.sh`)", path.display()))
 }

@@ -7,10 +7,10 @@
 //!
 //! `--h-max` below the model's h_min gives fixed sub-steps of that length.
 
-use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
-use stick_slip_manipulator::fmi::description::{variables, Output, Quantity};
-use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 use std::io::Write;
+use stick_slip_manipulator::fmi::description::{variables, Output, Quantity};
+use stick_slip_manipulator::motion::{reference_inputs, REFERENCE_RUN_TIME};
+use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 
 fn main() {
     if let Err(e) = run() {
@@ -112,7 +112,8 @@ fn write_header(w: &mut impl Write, outputs: &[(String, Output)]) -> std::io::Re
     let mut cols = vec!["time"];
     cols.extend(outputs.iter().map(|(name, _)| name.as_str()));
     // Names such as f[1,2] contain a comma: quote them (RFC 4180).
-    let quoted: Vec<String> = cols.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.to_string() }).collect();
+    let quoted: Vec<String> =
+        cols.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.to_string() }).collect();
     writeln!(w, "{}", quoted.join(","))
 }
 

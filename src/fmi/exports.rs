@@ -187,7 +187,9 @@ pub unsafe extern "C" fn fmi2Instantiate(
 fn model_urdf(resources: &std::path::Path, model_text: &str) -> Result<Option<String>, String> {
     let Some(name) = Model::urdf_reference(model_text) else { return Ok(None) };
     if name.is_empty() || name.contains(['/', '\\']) || name == ".." {
-        return Err(format!("resources/model.toml names the URDF `{name}`; a packaged model names a file in resources/"));
+        return Err(format!(
+            "resources/model.toml names the URDF `{name}`; a packaged model names a file in resources/"
+        ));
     }
     let path = resources.join(&name);
     std::fs::read_to_string(&path).map(Some).map_err(|e| format!("cannot read the URDF {}: {e}", path.display()))

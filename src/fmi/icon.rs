@@ -43,7 +43,12 @@ pub struct ChainPoints {
 /// The frame origins of `model` at q = 0: B_i = B_{i−1} · P_i · M_i(0).
 pub fn chain_points(model: &Model) -> ChainPoints {
     let mut frame = Placement::identity();
-    let mut points = ChainPoints { joints: Vec::new(), link_origins: Vec::new(), centres_of_mass: Vec::new(), end_point: Vec3::zeros() };
+    let mut points = ChainPoints {
+        joints: Vec::new(),
+        link_origins: Vec::new(),
+        centres_of_mass: Vec::new(),
+        end_point: Vec3::zeros(),
+    };
     for (joint, link) in model.joints.iter().zip(&model.links) {
         let joint_frame = frame.then(&joint.placement);
         let motion = match joint.kind {
@@ -51,7 +56,9 @@ pub fn chain_points(model: &Model) -> ChainPoints {
                 let (s, c) = joint.offset.sin_cos();
                 Placement { rotation: Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0), translation: Vec3::zeros() }
             }
-            JointKind::Prismatic => Placement { rotation: Mat3::identity(), translation: Vec3::new(0.0, 0.0, joint.offset) },
+            JointKind::Prismatic => {
+                Placement { rotation: Mat3::identity(), translation: Vec3::new(0.0, 0.0, joint.offset) }
+            }
         };
         frame = joint_frame.then(&motion);
         points.joints.push(joint_frame.translation);
@@ -172,10 +179,7 @@ impl Canvas {
     }
 
     fn rgba8(&self) -> Vec<u8> {
-        self.pixels
-            .iter()
-            .flat_map(|p| p.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
-            .collect()
+        self.pixels.iter().flat_map(|p| p.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect()
     }
 }
 
@@ -217,7 +221,13 @@ pub fn draw_chain(model: &Model, size: u32) -> Vec<u8> {
     let mut canvas = Canvas::new(size as usize);
     let corner = n * 0.09;
     canvas.rounded_box([n / 2.0, n / 2.0], [n / 2.0, n / 2.0], corner, FRAME, 1.0);
-    canvas.rounded_box([n / 2.0, n / 2.0], [n / 2.0 - n / 128.0, n / 2.0 - n / 128.0], corner - n / 128.0, BACKGROUND, 1.0);
+    canvas.rounded_box(
+        [n / 2.0, n / 2.0],
+        [n / 2.0 - n / 128.0, n / 2.0 - n / 128.0],
+        corner - n / 128.0,
+        BACKGROUND,
+        1.0,
+    );
 
     let link_r = n / 48.0;
     // Joints about as large as their spacing allows (joints at one place aside).

@@ -9,7 +9,9 @@ use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
 use crate::model::{Model, ModelSource};
-use crate::stepper::{DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use crate::stepper::{
+    DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES,
+};
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
 /// The value of a variable.
@@ -269,8 +271,12 @@ impl Instance {
         self.lifecycle = LifeCycle::StepComplete;
         if self.logger.enabled(Category::Events) {
             let s = self.sim.state();
-            let phases: Vec<String> =
-                s.phase.iter().enumerate().map(|(c, p)| format!("{} {}", coordinate_name(&self.base, c), phase_name(*p))).collect();
+            let phases: Vec<String> = s
+                .phase
+                .iter()
+                .enumerate()
+                .map(|(c, p)| format!("{} {}", coordinate_name(&self.base, c), phase_name(*p)))
+                .collect();
             self.logger.log(
                 Status::Ok,
                 Category::Events,
@@ -288,8 +294,8 @@ impl Instance {
         if !self.stale {
             return Ok(());
         }
-        let mut sim =
-            Simulator::new(self.sim.model().clone()).map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
+        let mut sim = Simulator::new(self.sim.model().clone())
+            .map_err(|e| Fault::error(format!("the model is not valid: {e}")))?;
         let initial = self.use_start_values.then_some(InitialState { q: &self.q_start, qd: &self.qd_start });
         let rotor_start = if self.static_start {
             RotorStart::StaticEquilibrium
@@ -538,7 +544,12 @@ impl Instance {
             let (is_torque, base, j) = match v.quantity {
                 Quantity::Input(field, j) => (false, field.index(), j),
                 Quantity::MotorTorque(j) => (true, 0, j),
-                _ => return Err(Fault::error(format!("`{}` is not an input; only inputs have input derivatives", v.name))),
+                _ => {
+                    return Err(Fault::error(format!(
+                        "`{}` is not an input; only inputs have input derivatives",
+                        v.name
+                    )))
+                }
             };
             if *order < 1 {
                 return Err(Fault::error(format!("derivative order {order} of `{}`: orders start at 1", v.name)));
@@ -662,8 +673,13 @@ impl Instance {
         if self.logger.enabled(Category::Events) {
             let (list, dropped) = self.sim.transitions();
             for t in list {
-                let message =
-                    format!("t = {} s: {} {} -> {}", t.time, coordinate_name(&self.base, t.joint), phase_name(t.from), phase_name(t.to));
+                let message = format!(
+                    "t = {} s: {} {} -> {}",
+                    t.time,
+                    coordinate_name(&self.base, t.joint),
+                    phase_name(t.from),
+                    phase_name(t.to)
+                );
                 self.logger.log(Status::Ok, Category::Events, &message);
             }
             if dropped > 0 {

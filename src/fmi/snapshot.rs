@@ -86,7 +86,13 @@ pub(crate) fn encode(s: &Snapshot, model_hash: u128) -> Vec<u8> {
 /// Decodes bytes made by [`encode`] for the same model (`model_hash`, `n`
 /// joints, `m` motor drives, `n_parameters` parameter variables). Every
 /// corrupted, truncated, padded or foreign buffer is rejected with the reason.
-pub(crate) fn decode(bytes: &[u8], model_hash: u128, n: usize, m: usize, n_parameters: usize) -> Result<Snapshot, String> {
+pub(crate) fn decode(
+    bytes: &[u8],
+    model_hash: u128,
+    n: usize,
+    m: usize,
+    n_parameters: usize,
+) -> Result<Snapshot, String> {
     if bytes.len() < HEADER + CHECKSUM {
         return Err(format!("truncated: {} bytes, an FMU state has at least {}", bytes.len(), HEADER + CHECKSUM));
     }
@@ -196,7 +202,8 @@ fn put_state(w: &mut Writer, s: &State) {
         steps,
     } = s;
     let StepStatistics { accepted, rejected, last_h, next_h } = steps;
-    let Energy { kinetic, potential, spring, drive_work, friction_heat, damping_heat, rotor_kinetic, motor_heat } = energy;
+    let Energy { kinetic, potential, spring, drive_work, friction_heat, damping_heat, rotor_kinetic, motor_heat } =
+        energy;
     w.f64(*time);
     for v in [q, qd, qdd] {
         w.f64s(v);
@@ -210,7 +217,9 @@ fn put_state(w: &mut Writer, s: &State) {
         w.u8(tag);
         w.0.extend_from_slice(&direction.to_le_bytes());
     }
-    for v in [q_star, qd_star, drive_force, damping_force, friction_force, normal_load, lever_load, margin, clearance_margin] {
+    for v in
+        [q_star, qd_star, drive_force, damping_force, friction_force, normal_load, lever_load, margin, clearance_margin]
+    {
         w.f64s(v);
     }
     for v in [reaction_force, reaction_moment] {

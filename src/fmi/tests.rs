@@ -379,13 +379,18 @@ mod motor {
 
     fn motor_instance() -> (fmi2Component, Log) {
         let (logger, log) = Logger::memory(true);
-        let instance = Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor reference model");
+        let instance =
+            Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor reference model");
         (into_component(instance), log)
     }
 
     fn vr(name: &str) -> fmi2ValueReference {
         let model = Model::reference_rrpr_motor();
-        variables(&model).iter().find(|v| v.name == name).unwrap_or_else(|| panic!("no variable {name}")).value_reference
+        variables(&model)
+            .iter()
+            .find(|v| v.name == name)
+            .unwrap_or_else(|| panic!("no variable {name}"))
+            .value_reference
     }
 
     fn set(c: fmi2Component, names: &[&str], values: &[f64]) -> fmi2Status {
@@ -430,8 +435,10 @@ mod motor {
     fn all_values(c: fmi2Component) -> Vec<u64> {
         let model = Model::reference_rrpr_motor();
         let vars = variables(&model);
-        let reals: Vec<_> = vars.iter().filter(|v| matches!(v.ty, Type::Real { .. })).map(|v| v.value_reference).collect();
-        let bools: Vec<_> = vars.iter().filter(|v| matches!(v.ty, Type::Boolean { .. })).map(|v| v.value_reference).collect();
+        let reals: Vec<_> =
+            vars.iter().filter(|v| matches!(v.ty, Type::Real { .. })).map(|v| v.value_reference).collect();
+        let bools: Vec<_> =
+            vars.iter().filter(|v| matches!(v.ty, Type::Boolean { .. })).map(|v| v.value_reference).collect();
         let mut r = vec![0.0; reals.len()];
         let mut b = vec![0; bools.len()];
         unsafe {
@@ -467,11 +474,15 @@ mod motor {
             assert_eq!(unsafe { fmi2DoStep(c, k as f64 * 1e-3, 1e-3, 0) }, OK);
         }
         let model = Model::reference_rrpr_motor();
-        for v in variables(&model).iter().filter(|v| v.causality == Causality::Output && matches!(v.ty, Type::Real { .. })) {
+        for v in
+            variables(&model).iter().filter(|v| v.causality == Causality::Output && matches!(v.ty, Type::Real { .. }))
+        {
             let x = get(c, &[v.name.as_str()])[0];
             assert!(x.is_finite(), "{} = {x}", v.name);
         }
-        let [theta, omega, e_rotor, w_drive] = get(c, &["theta_m[1]", "omega_m[1]", "E_rotor", "W_drive"])[..] else { unreachable!() };
+        let [theta, omega, e_rotor, w_drive] = get(c, &["theta_m[1]", "omega_m[1]", "E_rotor", "W_drive"])[..] else {
+            unreachable!()
+        };
         assert!(theta > 0.0 && omega > 0.0, "theta_m[1] = {theta}, omega_m[1] = {omega}");
         assert!(e_rotor > 0.0 && w_drive > 0.0, "E_rotor = {e_rotor}, W_drive = {w_drive}");
         let mut stuck = [9];
@@ -543,7 +554,10 @@ mod motor {
         // Out of range, NaN: refused, the valid entries of the call not stored either.
         assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[1]"], &[1, 2], &[7.0, 2e12]), ERROR);
         let message = last_message(&log).2;
-        assert!(message.contains("`tau_m[1]`") && message.contains("tau_m''") && message.contains("[-1e12, 1e12]"), "{message}");
+        assert!(
+            message.contains("`tau_m[1]`") && message.contains("tau_m''") && message.contains("[-1e12, 1e12]"),
+            "{message}"
+        );
         assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[1]"], &[1, 1], &[7.0, -2e9]), ERROR);
         assert!(last_message(&log).2.contains("[-1e9, 1e9]"), "{:?}", last_message(&log));
         assert_eq!(derivatives(c, &["tau_m[3]", "tau_m[3]"], &[1, 2], &[7.0, f64::NAN]), ERROR);
@@ -577,7 +591,12 @@ mod motor {
         initialize(c);
         assert_eq!(set(c, &["tau_m[1]"], &[0.25]), OK);
         let above = f64::from_bits(1e6f64.to_bits() + 1);
-        for (value, says) in [(above, "outside its range [-1e6, 1e6]"), (-2e6, "outside its range"), (f64::NAN, "not a finite number"), (f64::INFINITY, "not a finite number")] {
+        for (value, says) in [
+            (above, "outside its range [-1e6, 1e6]"),
+            (-2e6, "outside its range"),
+            (f64::NAN, "not a finite number"),
+            (f64::INFINITY, "not a finite number"),
+        ] {
             assert_eq!(set(c, &["tau_m[1]", "tau_m[3]"], &[0.5, value]), ERROR, "{value}");
             let message = last_message(&log).2;
             assert!(message.contains("`tau_m[3]`") && message.contains(says), "{message}");
@@ -665,8 +684,12 @@ mod motor {
                 let exit = fmi2ExitInitializationMode(c);
                 let theta = get(c, &["theta_m[3]", "q[3]"]);
                 fmi2FreeInstance(c);
-                let found: Vec<String> =
-                    log.borrow().iter().filter(|m| m.2.contains("gear spring deflected")).map(|m| m.2.clone()).collect();
+                let found: Vec<String> = log
+                    .borrow()
+                    .iter()
+                    .filter(|m| m.2.contains("gear spring deflected"))
+                    .map(|m| m.2.clone())
+                    .collect();
                 (exit, theta, found)
             }
         };
@@ -675,7 +698,9 @@ mod motor {
         assert_eq!(theta, [0.0, 0.8], "the start is the one declared");
         assert_eq!(found.len(), 1, "one warning of the loaded gear spring: {found:?}");
         let m = &found[0];
-        for part in ["joint 3", "theta_m_start[3] = 0 rad", "deflected by 8.000000e-1 m", "8.000000e5 N", "static_start = true"] {
+        for part in
+            ["joint 3", "theta_m_start[3] = 0 rad", "deflected by 8.000000e-1 m", "8.000000e5 N", "static_start = true"]
+        {
             assert!(m.contains(part), "`{part}` not in: {m}");
         }
         assert!(m.contains(&format!("= {}", n3 * 0.8)), "{m}");
@@ -689,7 +714,8 @@ mod motor {
     #[test]
     fn do_step_of_the_motor_arm_allocates_nothing() {
         let (logger, _log) = Logger::memory(false);
-        let c = into_component(Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor model"));
+        let c =
+            into_component(Instance::new(&ModelSource::toml(REFERENCE_RRPR_MOTOR_TOML), logger).expect("motor model"));
         initialize(c);
         let vrs = [vr("tau_m[1]"), vr("tau_m[3]")];
         let step = |k: usize| {
@@ -746,8 +772,22 @@ mod motor {
     fn is_motor_variable(name: &str) -> bool {
         let base = name.split('[').next().unwrap();
         [
-            "tau_m", "theta_m", "omega_m", "stick_m", "n_stick_m", "tau_load", "tau_f_m", "E_rotor", "Q_motor", "gear_ratio", "J_m",
-            "b_m", "tau_c", "theta_m_start", "omega_m_start", "static_start",
+            "tau_m",
+            "theta_m",
+            "omega_m",
+            "stick_m",
+            "n_stick_m",
+            "tau_load",
+            "tau_f_m",
+            "E_rotor",
+            "Q_motor",
+            "gear_ratio",
+            "J_m",
+            "b_m",
+            "tau_c",
+            "theta_m_start",
+            "omega_m_start",
+            "static_start",
         ]
         .contains(&base)
     }
@@ -780,9 +820,15 @@ mod motor {
                 .find(|e| e.starts_with(&format!("name=\"{name}\"")))
                 .unwrap_or_else(|| panic!("{name} is not in the XML"));
             let (c, va) = (format!("{causality:?}").to_lowercase(), format!("{variability:?}").to_lowercase());
-            assert!(element.contains(&format!("causality=\"{c}\"")) && element.contains(&format!("variability=\"{va}\"")), "{name}: {element}");
+            assert!(
+                element.contains(&format!("causality=\"{c}\"")) && element.contains(&format!("variability=\"{va}\"")),
+                "{name}: {element}"
+            );
             if causality == Causality::Output {
-                assert!(xml.contains(&format!("<Unknown index=\"{}\" dependencies=\"\"/>", v.value_reference + 1)), "{name} not in Outputs");
+                assert!(
+                    xml.contains(&format!("<Unknown index=\"{}\" dependencies=\"\"/>", v.value_reference + 1)),
+                    "{name} not in Outputs"
+                );
             }
         }
         // tau_m: N.m, its range, start 0; the ball screw's ratio in rad/m.
@@ -799,10 +845,15 @@ mod motor {
             }
         }
         // Inputs first: the drive inputs of every joint, then tau_m.
-        let inputs: Vec<&str> = vars.iter().filter(|v| v.causality == Causality::Input).map(|v| v.name.as_str()).collect();
+        let inputs: Vec<&str> =
+            vars.iter().filter(|v| v.causality == Causality::Input).map(|v| v.name.as_str()).collect();
         assert_eq!(inputs.len(), 14);
         assert_eq!(inputs[12..], ["tau_m[1]", "tau_m[3]"]);
-        assert_eq!(vars.iter().filter(|v| is_motor_variable(&v.name)).count(), 2 * 13 + 3, "13 per motor joint, E_rotor, Q_motor, static_start");
+        assert_eq!(
+            vars.iter().filter(|v| is_motor_variable(&v.name)).count(),
+            2 * 13 + 3,
+            "13 per motor joint, E_rotor, Q_motor, static_start"
+        );
     }
 
     // The reference arm (no motor) lists no motor variable, and its list is
@@ -813,14 +864,20 @@ mod motor {
     fn the_reference_model_description_has_no_motor_variables_and_is_unchanged() {
         let reference = variables(&Model::reference_rrpr());
         assert_eq!(reference.len(), 124);
-        let motor_names: Vec<&str> = reference.iter().map(|v| v.name.as_str()).filter(|n| is_motor_variable(n)).collect();
+        let motor_names: Vec<&str> =
+            reference.iter().map(|v| v.name.as_str()).filter(|n| is_motor_variable(n)).collect();
         assert!(motor_names.is_empty(), "{motor_names:?}");
         let xml = model_description_xml(&Model::reference_rrpr(), REFERENCE_RRPR_TOML);
         for name in ["tau_m[", "theta_m[", "E_rotor", "gear_ratio[", "static_start"] {
             assert!(!xml.contains(&format!("name=\"{name}")), "{name} in the reference XML");
         }
-        let summary = |v: &super::super::description::Variable| (v.name.clone(), v.causality, v.variability, type_letter(&v.ty));
-        let without_motors: Vec<_> = variables(&Model::reference_rrpr_motor()).iter().filter(|v| !is_motor_variable(&v.name)).map(summary).collect();
+        let summary =
+            |v: &super::super::description::Variable| (v.name.clone(), v.causality, v.variability, type_letter(&v.ty));
+        let without_motors: Vec<_> = variables(&Model::reference_rrpr_motor())
+            .iter()
+            .filter(|v| !is_motor_variable(&v.name))
+            .map(summary)
+            .collect();
         let reference: Vec<_> = reference.iter().map(summary).collect();
         assert_eq!(reference, without_motors);
     }

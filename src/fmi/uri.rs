@@ -51,7 +51,9 @@ pub(crate) fn local_path(uri: &str, syntax: PathSyntax) -> Result<Vec<u8>, Strin
 fn is_absolute(path: &str, syntax: PathSyntax) -> bool {
     match syntax {
         PathSyntax::Unix => path.starts_with('/'),
-        PathSyntax::Windows => (path.len() > 2 && starts_with_drive(path.as_bytes())) || path.starts_with("\\\\") || path.starts_with("//"),
+        PathSyntax::Windows => {
+            (path.len() > 2 && starts_with_drive(path.as_bytes())) || path.starts_with("\\\\") || path.starts_with("//")
+        }
     }
 }
 
@@ -190,7 +192,10 @@ mod tests {
     #[test]
     fn windows_drive_letter_follows_the_root_slash() {
         assert_eq!(windows("file:///C:/dir/resources"), "C:/dir/resources");
-        assert_eq!(windows("file:///c:/Users/A%20B/AppData/Local/Temp/fmu/resources/"), "c:/Users/A B/AppData/Local/Temp/fmu/resources/");
+        assert_eq!(
+            windows("file:///c:/Users/A%20B/AppData/Local/Temp/fmu/resources/"),
+            "c:/Users/A B/AppData/Local/Temp/fmu/resources/"
+        );
         assert_eq!(windows("file:/D:/x"), "D:/x");
         assert_eq!(windows("file://localhost/C:/x"), "C:/x");
         assert_eq!(windows("FILE:///C:"), "C:");
@@ -214,7 +219,17 @@ mod tests {
 
     #[test]
     fn windows_rejects_what_is_no_absolute_file_uri() {
-        for uri in ["", "resources", "C:", "dir\\r", "http://example.com/r", "file://", "file:C:/x", "file:///C:/%zz", "file:///C:/r?x=1"] {
+        for uri in [
+            "",
+            "resources",
+            "C:",
+            "dir\\r",
+            "http://example.com/r",
+            "file://",
+            "file:C:/x",
+            "file:///C:/%zz",
+            "file:///C:/r?x=1",
+        ] {
             let err = local_path(uri, PathSyntax::Windows).expect_err(uri);
             assert!(!err.is_empty(), "{uri}");
         }
@@ -226,13 +241,22 @@ mod tests {
     /// the host syntax there is `PathSyntax::Unix`, tested here on Linux.
     #[test]
     fn macos_forms_are_unix_paths() {
-        assert_eq!(ok("file:///Users/jane/Models/StickSlip/resources"), PathBuf::from("/Users/jane/Models/StickSlip/resources"));
-        assert_eq!(ok("file://localhost/Users/jane/Models/StickSlip/resources/"), PathBuf::from("/Users/jane/Models/StickSlip/resources/"));
+        assert_eq!(
+            ok("file:///Users/jane/Models/StickSlip/resources"),
+            PathBuf::from("/Users/jane/Models/StickSlip/resources")
+        );
+        assert_eq!(
+            ok("file://localhost/Users/jane/Models/StickSlip/resources/"),
+            PathBuf::from("/Users/jane/Models/StickSlip/resources/")
+        );
         assert_eq!(
             ok("file:///private/var/folders/7x/k2_5t9_n0bq3_h9c1d4w8r6m0000gn/T/tmpa1b2c3d4/resources"),
             PathBuf::from("/private/var/folders/7x/k2_5t9_n0bq3_h9c1d4w8r6m0000gn/T/tmpa1b2c3d4/resources")
         );
-        assert_eq!(ok("file:///Users/Jane%20Doe/My%20FMUs/resources"), PathBuf::from("/Users/Jane Doe/My FMUs/resources"));
+        assert_eq!(
+            ok("file:///Users/Jane%20Doe/My%20FMUs/resources"),
+            PathBuf::from("/Users/Jane Doe/My FMUs/resources")
+        );
         assert_eq!(ok("file:/Users/jane/r"), PathBuf::from("/Users/jane/r"));
         assert_eq!(ok("/Users/jane/Models/resources"), PathBuf::from("/Users/jane/Models/resources"));
         // The volume of an external disk.

@@ -67,7 +67,15 @@ pub struct DriveForce {
 /// and σ = sgn(q* − q); with Δ > 0 and h > 0 a flank that (2.1) would make
 /// pull is released and the force is 0 (see the module doc).
 #[inline(always)]
-pub fn drive_force(stiffness: f64, damping: f64, clearance: f64, q_star: f64, qd_star: f64, q: f64, qd: f64) -> DriveForce {
+pub fn drive_force(
+    stiffness: f64,
+    damping: f64,
+    clearance: f64,
+    q_star: f64,
+    qd_star: f64,
+    q: f64,
+    qd: f64,
+) -> DriveForce {
     let e = q_star - q;
     if !clearance_taken_up(clearance, e) {
         return DriveForce { force: 0.0, damping: 0.0, engaged: false, flank: f64::INFINITY };

@@ -56,7 +56,12 @@ pub struct PhaseFriction {
 /// held; the margin is the static reserve F̄^f − |F^d − F*|, with
 /// F̄^f = μ_s·`lever_load` (3.12) or (3.14) with the static coefficient.
 #[inline(always)]
-pub fn stuck_friction(coefficients: Option<FrictionCoefficients>, lever_load: f64, drive_force: f64, axial_reaction: f64) -> PhaseFriction {
+pub fn stuck_friction(
+    coefficients: Option<FrictionCoefficients>,
+    lever_load: f64,
+    drive_force: f64,
+    axial_reaction: f64,
+) -> PhaseFriction {
     let static_limit = coefficients.map_or(0.0, |c| c.mu_static) * lever_load;
     let held = drive_force - axial_reaction;
     PhaseFriction { force: held, margin: static_limit - held.abs() }
@@ -83,7 +88,12 @@ pub fn prescribed_friction(coefficients: Option<FrictionCoefficients>, lever_loa
 /// ∂F^f/∂q̇ of [`slip_friction`] at a fixed lever load: d·L·μ'(q̇). In a
 /// Newmark sub-step q̇ moves by γh per unit of q̈.
 #[inline(always)]
-pub fn slip_friction_velocity_slope(coefficients: FrictionCoefficients, lever_load: f64, qd: f64, direction: i8) -> f64 {
+pub fn slip_friction_velocity_slope(
+    coefficients: FrictionCoefficients,
+    lever_load: f64,
+    qd: f64,
+    direction: i8,
+) -> f64 {
     direction as f64 * lever_load * coefficients.kinetic_slope(qd)
 }
 

@@ -47,11 +47,23 @@ pub struct RotorTorques {
 /// acceleration θ̈_m = `alpha`; `slip` is `None` for a stuck rotor and its
 /// direction ±1 for a slipping one.
 #[inline(always)]
-pub fn rotor_torques(rotor: &Rotor, motor_torque: f64, gear_force: f64, omega: f64, alpha: f64, slip: Option<i8>) -> RotorTorques {
+pub fn rotor_torques(
+    rotor: &Rotor,
+    motor_torque: f64,
+    gear_force: f64,
+    omega: f64,
+    alpha: f64,
+    slip: Option<i8>,
+) -> RotorTorques {
     let load = gear_force / rotor.gear_ratio;
     let held = motor_torque - load;
     match slip {
-        None => RotorTorques { friction: held, residual: 0.0, margin: rotor.coulomb - held.abs(), scale: motor_torque.abs() + load.abs() },
+        None => RotorTorques {
+            friction: held,
+            residual: 0.0,
+            margin: rotor.coulomb - held.abs(),
+            scale: motor_torque.abs() + load.abs(),
+        },
         Some(direction) => {
             let d = direction as f64;
             let friction = d * rotor.coulomb;

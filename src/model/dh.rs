@@ -21,8 +21,7 @@
 use super::manipulator::validate_link;
 use super::range::{check_value, check_vec, Range};
 use super::{
-    ContactGeometry, DhJoint, DhRow, IntegratorSettings, Joint, JointFriction, JointKind, Link,
-    Model, Placement,
+    ContactGeometry, DhJoint, DhRow, IntegratorSettings, Joint, JointFriction, JointKind, Link, Model, Placement,
 };
 use crate::error::ModelError;
 use crate::math::{Mat3, Vec3};
@@ -30,25 +29,16 @@ use crate::math::{Mat3, Vec3};
 /// T_i = Trans_x(a_i)·Rot_x(α_i): the study's frame i in the engine's link frame i.
 pub fn trailing_placement(row: &DhRow) -> Placement {
     let (sa, ca) = row.alpha.sin_cos();
-    Placement {
-        rotation: Mat3::new(1.0, 0.0, 0.0, 0.0, ca, -sa, 0.0, sa, ca),
-        translation: Vec3::new(row.a, 0.0, 0.0),
-    }
+    Placement { rotation: Mat3::new(1.0, 0.0, 0.0, 0.0, ca, -sa, 0.0, sa, ca), translation: Vec3::new(row.a, 0.0, 0.0) }
 }
 
 /// P_i: Trans_z(d_i) for a revolute joint, Rot_z(θ_i) for a prismatic one.
 fn leading_placement(kind: JointKind, row: &DhRow) -> Placement {
     match kind {
-        JointKind::Revolute => Placement {
-            rotation: Mat3::identity(),
-            translation: Vec3::new(0.0, 0.0, row.d),
-        },
+        JointKind::Revolute => Placement { rotation: Mat3::identity(), translation: Vec3::new(0.0, 0.0, row.d) },
         JointKind::Prismatic => {
             let (st, ct) = row.theta.sin_cos();
-            Placement {
-                rotation: Mat3::new(ct, -st, 0.0, st, ct, 0.0, 0.0, 0.0, 1.0),
-                translation: Vec3::zeros(),
-            }
+            Placement { rotation: Mat3::new(ct, -st, 0.0, st, ct, 0.0, 0.0, 0.0, 1.0), translation: Vec3::zeros() }
         }
     }
 }
@@ -61,17 +51,9 @@ fn check_dh_joint(number: usize, joint: &DhJoint) -> Result<(), ModelError> {
     check_value(&f("d"), joint.dh.d, Range::GEOMETRY)?;
     check_value(&f("a"), joint.dh.a, Range::GEOMETRY)?;
     check_value(&f("alpha"), joint.dh.alpha, Range::GEOMETRY)?;
-    if let Some(JointFriction {
-        geometry: ContactGeometry::Bearings { reaction_point, .. },
-        ..
-    }) = joint.friction
-    {
+    if let Some(JointFriction { geometry: ContactGeometry::Bearings { reaction_point, .. }, .. }) = joint.friction {
         for (k, x) in reaction_point.iter().enumerate() {
-            check_value(
-                &f(&format!("bearings.reaction_point[{}]", k + 1)),
-                *x,
-                Range::GEOMETRY,
-            )?;
+            check_value(&f(&format!("bearings.reaction_point[{}]", k + 1)), *x, Range::GEOMETRY)?;
         }
         if reaction_point.x.abs() > 1e-12 || reaction_point.y.abs() > 1e-12 {
             return Err(ModelError::Invalid {
@@ -87,11 +69,7 @@ fn check_dh_joint(number: usize, joint: &DhJoint) -> Result<(), ModelError> {
 /// frame: through T_i.
 fn link_in_link_frame(link: &Link, trailing: &Placement) -> Link {
     let r = trailing.rotation;
-    Link {
-        mass: link.mass,
-        com: trailing.apply(&link.com),
-        inertia: r * link.inertia * r.transpose(),
-    }
+    Link { mass: link.mass, com: trailing.apply(&link.com), inertia: r * link.inertia * r.transpose() }
 }
 
 impl Model {
@@ -133,31 +111,19 @@ impl Model {
                 coefficients: f.coefficients,
                 geometry: match f.geometry {
                     // On z_{i−1}: the joint frame is frame i−1 shifted by d_i along it.
-                    ContactGeometry::Bearings {
-                        reaction_point,
-                        l_a,
-                        l_b,
-                        d_a,
-                        d_b,
-                        d_c,
-                    } => ContactGeometry::Bearings {
-                        reaction_point: Vec3::new(
-                            0.0,
-                            0.0,
-                            reaction_point.z - leading.translation.z,
-                        ),
-                        l_a,
-                        l_b,
-                        d_a,
-                        d_b,
-                        d_c,
-                    },
-                    ContactGeometry::Slider { centre, a, b, c } => ContactGeometry::Slider {
-                        centre: trailing.apply(&centre),
-                        a,
-                        b,
-                        c,
-                    },
+                    ContactGeometry::Bearings { reaction_point, l_a, l_b, d_a, d_b, d_c } => {
+                        ContactGeometry::Bearings {
+                            reaction_point: Vec3::new(0.0, 0.0, reaction_point.z - leading.translation.z),
+                            l_a,
+                            l_b,
+                            d_a,
+                            d_b,
+                            d_c,
+                        }
+                    }
+                    ContactGeometry::Slider { centre, a, b, c } => {
+                        ContactGeometry::Slider { centre: trailing.apply(&centre), a, b, c }
+                    }
                 },
             });
             joints.push(Joint {
@@ -170,11 +136,8 @@ impl Model {
             });
             previous_trailing = trailing;
         }
-        let links: Vec<Link> = links
-            .iter()
-            .zip(dh_joints)
-            .map(|(l, j)| link_in_link_frame(l, &trailing_placement(&j.dh)))
-            .collect();
+        let links: Vec<Link> =
+            links.iter().zip(dh_joints).map(|(l, j)| link_in_link_frame(l, &trailing_placement(&j.dh))).collect();
         let model = Model {
             name: name.into(),
             joint_names: vec![None; joints.len()],

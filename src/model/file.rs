@@ -194,7 +194,10 @@ impl ModelSource {
     /// whatever name the model file gives it.
     pub fn model(&self) -> Result<Model, ModelError> {
         Model::from_toml_with(&self.toml, &|name| {
-            self.urdf.clone().ok_or_else(|| ModelError::Io { path: name.into(), reason: "the model names a URDF, but none was supplied with it".into() })
+            self.urdf.clone().ok_or_else(|| ModelError::Io {
+                path: name.into(),
+                reason: "the model names a URDF, but none was supplied with it".into(),
+            })
         })
     }
 }
@@ -212,7 +215,10 @@ pub fn with_urdf_file_name(text: &str, file_name: &str) -> Option<String> {
             let is_key = t.strip_prefix("urdf").is_some_and(|rest| rest.trim_start().starts_with('='));
             if is_key && !found {
                 found = true;
-                format!("urdf = {:?}   # packaged into resources/ beside this file (the model file said: {})", file_name, t)
+                format!(
+                    "urdf = {:?}   # packaged into resources/ beside this file (the model file said: {})",
+                    file_name, t
+                )
             } else {
                 line.to_string()
             }
@@ -237,7 +243,10 @@ impl Model {
 
     /// Parses and validates a model from TOML text; `read_file` returns the
     /// text of a file the model names (its `urdf`), given the name as written.
-    pub fn from_toml_with(text: &str, read_file: &dyn Fn(&str) -> Result<String, ModelError>) -> Result<Model, ModelError> {
+    pub fn from_toml_with(
+        text: &str,
+        read_file: &dyn Fn(&str) -> Result<String, ModelError>,
+    ) -> Result<Model, ModelError> {
         let file: ModelFile = toml::from_str(text).map_err(|e| ModelError::Syntax { reason: e.to_string() })?;
         let defaults = IntegratorSettings::default();
         let integrator = match &file.integrator {
@@ -267,7 +276,8 @@ impl Model {
         let dir = path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
         Model::from_toml_with(&text, &|name| {
             let file = dir.join(name);
-            std::fs::read_to_string(&file).map_err(|e| ModelError::Io { path: file.display().to_string(), reason: e.to_string() })
+            std::fs::read_to_string(&file)
+                .map_err(|e| ModelError::Io { path: file.display().to_string(), reason: e.to_string() })
         })
     }
 
@@ -295,7 +305,11 @@ fn missing(field: &str, what: &str) -> ModelError {
 }
 
 fn dh_model(file: &ModelFile, integrator: IntegratorSettings) -> Result<Model, ModelError> {
-    for (key, present) in [("base_link", file.base_link.is_some()), ("tip_link", file.tip_link.is_some()), ("joints", file.joints.is_some())] {
+    for (key, present) in [
+        ("base_link", file.base_link.is_some()),
+        ("tip_link", file.tip_link.is_some()),
+        ("joints", file.joints.is_some()),
+    ] {
         if present {
             return Err(ModelError::Invalid {
                 field: key.into(),
@@ -304,8 +318,10 @@ fn dh_model(file: &ModelFile, integrator: IntegratorSettings) -> Result<Model, M
         }
     }
     let gravity = file.gravity.ok_or_else(|| missing("gravity", "the gravity vector in frame 0, m/s²"))?;
-    let end_point = file.end_point.ok_or_else(|| missing("end_point", "the end point in the frame of the last link, m"))?;
-    let joints = file.joint.iter().enumerate().map(|(i, j)| joint_from_file(i + 1, j)).collect::<Result<Vec<_>, _>>()?;
+    let end_point =
+        file.end_point.ok_or_else(|| missing("end_point", "the end point in the frame of the last link, m"))?;
+    let joints =
+        file.joint.iter().enumerate().map(|(i, j)| joint_from_file(i + 1, j)).collect::<Result<Vec<_>, _>>()?;
     let links: Vec<Link> = file.joint.iter().map(|j| link_from_file(&j.link)).collect();
     Model::from_dh(
         file.name.clone().unwrap_or_else(|| "manipulator".into()),
@@ -355,7 +371,10 @@ impl JointExtras {
     fn from_file(name: &str, entry: &UrdfJointFile) -> Result<JointExtras, ModelError> {
         let field = format!("joints.{name}");
         if entry.bearings.is_some() && entry.slider.is_some() {
-            return Err(ModelError::Invalid { field, reason: "has both `bearings` and `slider`; a joint has one contact geometry".into() });
+            return Err(ModelError::Invalid {
+                field,
+                reason: "has both `bearings` and `slider`; a joint has one contact geometry".into(),
+            });
         }
         let geometry = geometry_from_file(entry.bearings.as_ref(), entry.slider.as_ref());
         Ok(JointExtras {
@@ -435,7 +454,10 @@ fn joint_from_file(number: usize, j: &JointFile) -> Result<DhJoint, ModelError> 
     let geometry = geometry_from_file(j.bearings.as_ref(), j.slider.as_ref());
     if j.friction.is_some() && geometry.is_none() {
         let (field, what) = kind.friction_geometry();
-        return Err(ModelError::Invalid { field: format!("joint[{number}].{field}"), reason: format!("friction on this joint needs {what}") });
+        return Err(ModelError::Invalid {
+            field: format!("joint[{number}].{field}"),
+            reason: format!("friction on this joint needs {what}"),
+        });
     }
     Ok(DhJoint {
         kind,
@@ -444,7 +466,6 @@ fn joint_from_file(number: usize, j: &JointFile) -> Result<DhJoint, ModelError> 
         friction: friction_from_file(j.friction.as_ref(), geometry),
     })
 }
-
 
 fn link_from_file(l: &LinkFile) -> Link {
     let i = &l.inertia;

@@ -42,7 +42,10 @@ impl Placement {
 
     /// `self · other`: `other` given in the child frame of `self`.
     pub fn then(&self, other: &Placement) -> Placement {
-        Placement { rotation: self.rotation * other.rotation, translation: self.translation + self.rotation * other.translation }
+        Placement {
+            rotation: self.rotation * other.rotation,
+            translation: self.translation + self.rotation * other.translation,
+        }
     }
 
     /// A point of the child frame resolved in the parent frame.

@@ -231,12 +231,12 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
             check_value(&f("slider.c"), c, Range::CONTACT_SIZE)?;
             check_value(&f("slider.b + slider.c"), b + c, SLIDER_SECTION)?;
         }
-        (JointKind::Revolute, _) => {
-            return Err(ModelError::Invalid {
-                field: f("bearings"),
-                reason: "a revolute joint with friction needs its bearing geometry (reaction_point, l_a, l_b, d_a, d_b, d_c)".into(),
-            })
-        }
+        (JointKind::Revolute, _) => return Err(ModelError::Invalid {
+            field: f("bearings"),
+            reason:
+                "a revolute joint with friction needs its bearing geometry (reaction_point, l_a, l_b, d_a, d_b, d_c)"
+                    .into(),
+        }),
         (JointKind::Prismatic, _) => {
             return Err(ModelError::Invalid {
                 field: f("slider"),
@@ -277,7 +277,10 @@ pub(super) fn validate_link(number: usize, link: &Link, strict: bool) -> Result<
     if min <= 0.0 {
         return Err(ModelError::Invalid {
             field: f("inertia"),
-            reason: format!("tensor is not positive definite (principal moments {:.6e}, {:.6e}, {:.6e})", eig[0], eig[1], eig[2]),
+            reason: format!(
+                "tensor is not positive definite (principal moments {:.6e}, {:.6e}, {:.6e})",
+                eig[0], eig[1], eig[2]
+            ),
         });
     }
     // A rigid body's principal moments satisfy I1 + I2 ≥ I3 for every ordering.

@@ -220,9 +220,13 @@ fn slot<'a>(j: &'a mut Joint, link: &'a mut Link, p: Parameter) -> Option<&'a mu
         return (link.mass > 0.0).then_some(&mut link.mass);
     }
     match (&mut j.drive, p) {
-        (Drive::Flexible { stiffness, .. } | Drive::Motor { stiffness, .. }, Parameter::Stiffness) => return Some(stiffness),
+        (Drive::Flexible { stiffness, .. } | Drive::Motor { stiffness, .. }, Parameter::Stiffness) => {
+            return Some(stiffness)
+        }
         (Drive::Flexible { damping, .. } | Drive::Motor { damping, .. }, Parameter::Damping) => return Some(damping),
-        (Drive::Flexible { clearance, .. } | Drive::Motor { clearance, .. }, Parameter::Clearance) => return Some(clearance),
+        (Drive::Flexible { clearance, .. } | Drive::Motor { clearance, .. }, Parameter::Clearance) => {
+            return Some(clearance)
+        }
         (Drive::Motor { rotor, .. }, Parameter::GearRatio) => return Some(&mut rotor.gear_ratio),
         (Drive::Motor { rotor, .. }, Parameter::RotorInertia) => return Some(&mut rotor.inertia),
         (Drive::Motor { rotor, .. }, Parameter::MotorViscous) => return Some(&mut rotor.viscous),

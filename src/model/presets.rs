@@ -32,7 +32,9 @@ impl Model {
                     d_b: 0.05,
                     d_c: 0.05,
                 },
-                JointKind::Prismatic => ContactGeometry::Slider { centre: Vec3::new(0.0, 0.0, -0.1), a: 0.4, b: 0.1, c: 0.1 },
+                JointKind::Prismatic => {
+                    ContactGeometry::Slider { centre: Vec3::new(0.0, 0.0, -0.1), a: 0.4, b: 0.1, c: 0.1 }
+                }
             };
             joints.push(DhJoint {
                 kind,

@@ -127,4 +127,3 @@ pub(crate) fn check_vec(field: &str, v: &Vec3, range: Range) -> Result<(), Model
     }
     Ok(())
 }
-

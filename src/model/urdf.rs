@@ -73,11 +73,7 @@ pub struct UrdfInertial {
 impl UrdfInertial {
     /// No mass, no inertia.
     pub fn zero() -> UrdfInertial {
-        UrdfInertial {
-            mass: 0.0,
-            com: Vec3::zeros(),
-            inertia: Mat3::zeros(),
-        }
+        UrdfInertial { mass: 0.0, com: Vec3::zeros(), inertia: Mat3::zeros() }
     }
 }
 
@@ -136,11 +132,7 @@ pub struct UrdfChain {
 
 /// Reads the chain from `base_link` (default: the root link) to `tip_link`
 /// (default: the single leaf below `base_link`) of the URDF document `xml`.
-pub fn read_urdf(
-    xml: &str,
-    base_link: Option<&str>,
-    tip_link: Option<&str>,
-) -> Result<UrdfChain, ModelError> {
+pub fn read_urdf(xml: &str, base_link: Option<&str>, tip_link: Option<&str>) -> Result<UrdfChain, ModelError> {
     let robot = parse(xml)?;
     let tree = Tree::new(&robot)?;
     build_chain(&robot, &tree, base_link, tip_link)
@@ -158,10 +150,7 @@ struct Transform {
 
 impl Transform {
     fn identity() -> Transform {
-        Transform {
-            rotation: Mat3::identity(),
-            translation: Vec3::zeros(),
-        }
+        Transform { rotation: Mat3::identity(), translation: Vec3::zeros() }
     }
 
     /// self ∘ other: `other` maps c → b, `self` maps b → a.
@@ -239,10 +228,7 @@ struct Robot {
 }
 
 fn urdf_error(element: impl Into<String>, reason: impl Into<String>) -> ModelError {
-    ModelError::Urdf {
-        element: element.into(),
-        reason: reason.into(),
-    }
+    ModelError::Urdf { element: element.into(), reason: reason.into() }
 }
 
 fn link_element(name: &str) -> String {
@@ -263,8 +249,7 @@ impl Attributes {
     fn read(element: String, start: &BytesStart<'_>) -> Result<Attributes, ModelError> {
         let mut pairs = Vec::new();
         for attr in start.attributes() {
-            let attr =
-                attr.map_err(|e| urdf_error(&element, format!("malformed attribute: {e}")))?;
+            let attr = attr.map_err(|e| urdf_error(&element, format!("malformed attribute: {e}")))?;
             let key = String::from_utf8_lossy(attr.key.as_ref()).into_owned();
             let value = attr
                 .normalized_value(XmlVersion::Implicit1_0)
@@ -276,30 +261,20 @@ impl Attributes {
     }
 
     fn get(&self, key: &str) -> Option<&str> {
-        self.pairs
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
+        self.pairs.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
     }
 
     fn required(&self, key: &str) -> Result<&str, ModelError> {
-        self.get(key)
-            .ok_or_else(|| urdf_error(&self.element, format!("attribute `{key}` is missing")))
+        self.get(key).ok_or_else(|| urdf_error(&self.element, format!("attribute `{key}` is missing")))
     }
 
     fn number(&self, key: &str, text: &str) -> Result<f64, ModelError> {
         let t = text.trim();
-        let value: f64 = t.parse().map_err(|_| {
-            urdf_error(
-                &self.element,
-                format!("attribute `{key}` = \"{text}\" is not a number"),
-            )
-        })?;
+        let value: f64 = t
+            .parse()
+            .map_err(|_| urdf_error(&self.element, format!("attribute `{key}` = \"{text}\" is not a number")))?;
         if !value.is_finite() {
-            return Err(urdf_error(
-                &self.element,
-                format!("attribute `{key}` = \"{text}\" is not finite"),
-            ));
+            return Err(urdf_error(&self.element, format!("attribute `{key}` = \"{text}\" is not finite")));
         }
         Ok(value)
     }
@@ -321,19 +296,13 @@ impl Attributes {
         if parts.len() != 3 {
             return Err(urdf_error(
                 &self.element,
-                format!(
-                    "attribute `{key}` = \"{text}\" must be 3 numbers separated by spaces, has {}",
-                    parts.len()
-                ),
+                format!("attribute `{key}` = \"{text}\" must be 3 numbers separated by spaces, has {}", parts.len()),
             ));
         }
         let mut v = Vec3::zeros();
         for (i, p) in parts.iter().enumerate() {
             v[i] = self.number(key, p).map_err(|_| {
-                urdf_error(
-                    &self.element,
-                    format!("attribute `{key}` = \"{text}\": `{p}` is not a finite number"),
-                )
+                urdf_error(&self.element, format!("attribute `{key}` = \"{text}\": `{p}` is not a finite number"))
             })?;
         }
         Ok(v)
@@ -343,10 +312,7 @@ impl Attributes {
     fn origin(&self) -> Result<Transform, ModelError> {
         let xyz = self.triple("xyz", Vec3::zeros())?;
         let rpy = self.triple("rpy", Vec3::zeros())?;
-        Ok(Transform {
-            rotation: rpy_matrix(rpy.x, rpy.y, rpy.z),
-            translation: xyz,
-        })
+        Ok(Transform { rotation: rpy_matrix(rpy.x, rpy.y, rpy.z), translation: xyz })
     }
 }
 
@@ -386,17 +352,11 @@ struct Parser {
 
 /// Stores `value` in `slot`; a second element `<child>` in `parent` is
 /// accepted when it says the same as the first, refused when it differs.
-fn set_once<T: PartialEq>(
-    slot: &mut Option<T>,
-    value: T,
-    parent: &str,
-    child: &str,
-) -> Result<(), ModelError> {
+fn set_once<T: PartialEq>(slot: &mut Option<T>, value: T, parent: &str, child: &str) -> Result<(), ModelError> {
     match slot {
-        Some(old) if *old != value => Err(urdf_error(
-            parent,
-            format!("has two <{child}> elements that differ; give one"),
-        )),
+        Some(old) if *old != value => {
+            Err(urdf_error(parent, format!("has two <{child}> elements that differ; give one")))
+        }
         _ => {
             *slot = Some(value);
             Ok(())
@@ -430,10 +390,7 @@ impl Parser {
                 ));
             }
             if name != "robot" {
-                return Err(urdf_error(
-                    "<robot>",
-                    format!("the document's root element is <{name}>, not <robot>"),
-                ));
+                return Err(urdf_error("<robot>", format!("the document's root element is <{name}>, not <robot>")));
             }
             self.seen_root = true;
             return Ok(());
@@ -443,20 +400,13 @@ impl Parser {
                 "link" => {
                     let a = Attributes::read("<link>".into(), start)?;
                     let link_name = a.required("name")?.to_string();
-                    self.link = Some(LinkBuilder {
-                        name: link_name,
-                        inertial: None,
-                        seen_inertial: false,
-                    });
+                    self.link = Some(LinkBuilder { name: link_name, inertial: None, seen_inertial: false });
                 }
                 "joint" => {
                     let a = Attributes::read("<joint>".into(), start)?;
                     let joint_name = a.required("name")?.to_string();
                     let element = joint_element(&joint_name);
-                    let a = Attributes {
-                        element: element.clone(),
-                        pairs: a.pairs,
-                    };
+                    let a = Attributes { element: element.clone(), pairs: a.pairs };
                     let kind = match a.required("type")? {
                         "revolute" => UrdfJointType::Revolute,
                         "continuous" => UrdfJointType::Continuous,
@@ -516,18 +466,14 @@ impl Parser {
                     let a = Attributes::read(element, start)?;
                     let mass = a.required_number("value")?;
                     if mass < 0.0 {
-                        return Err(urdf_error(
-                            &a.element,
-                            format!("value = {mass} is negative"),
-                        ));
+                        return Err(urdf_error(&a.element, format!("value = {mass} is negative")));
                     }
                     set_once(&mut inertial.mass, mass, &parent, name)?;
                 }
                 "inertia" => {
                     let a = Attributes::read(element, start)?;
                     let mut v = [0.0; 6];
-                    for (slot, key) in v.iter_mut().zip(["ixx", "ixy", "ixz", "iyy", "iyz", "izz"])
-                    {
+                    for (slot, key) in v.iter_mut().zip(["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]) {
                         *slot = a.required_number(key)?;
                     }
                     let [ixx, ixy, ixz, iyy, iyz, izz] = v;
@@ -569,11 +515,7 @@ impl Parser {
                 "parent" | "child" => {
                     let a = Attributes::read(element, start)?;
                     let link = a.required("link")?.to_string();
-                    let slot = if name == "parent" {
-                        &mut joint.parent
-                    } else {
-                        &mut joint.child
-                    };
+                    let slot = if name == "parent" { &mut joint.parent } else { &mut joint.child };
                     set_once(slot, link, &parent, name)?;
                 }
                 "mimic" => joint.mimic = true,
@@ -588,10 +530,7 @@ impl Parser {
             self.finish_inertial()
         } else if self.in_path(&["robot", "link"]) && name == "link" {
             let link = self.link.take().expect("inside <link>");
-            self.robot.links.push(LinkData {
-                name: link.name,
-                inertial: link.inertial,
-            });
+            self.robot.links.push(LinkData { name: link.name, inertial: link.inertial });
             Ok(())
         } else if self.in_path(&["robot", "joint"]) && name == "joint" {
             self.finish_joint()
@@ -604,35 +543,21 @@ impl Parser {
         let b = self.inertial.take().expect("inside <inertial>");
         let link = self.link.as_mut().expect("inside <link>");
         let element = format!("{}<inertial>", link_element(&link.name));
-        let mass = b
-            .mass
-            .ok_or_else(|| urdf_error(&element, "has no <mass>"))?;
-        let inertia = b
-            .inertia
-            .ok_or_else(|| urdf_error(&element, "has no <inertia>"))?;
+        let mass = b.mass.ok_or_else(|| urdf_error(&element, "has no <mass>"))?;
+        let inertia = b.inertia.ok_or_else(|| urdf_error(&element, "has no <inertia>"))?;
         let origin = b.origin.unwrap_or_else(Transform::identity);
-        link.inertial = Some(UrdfInertial {
-            mass,
-            com: origin.translation,
-            inertia: rotate_inertia(&origin.rotation, &inertia),
-        });
+        link.inertial =
+            Some(UrdfInertial { mass, com: origin.translation, inertia: rotate_inertia(&origin.rotation, &inertia) });
         Ok(())
     }
 
     fn finish_joint(&mut self) -> Result<(), ModelError> {
         let j = self.joint.take().expect("inside <joint>");
         let element = joint_element(&j.name);
-        let parent = j
-            .parent
-            .ok_or_else(|| urdf_error(&element, "has no <parent link=\"…\"/>"))?;
-        let child = j
-            .child
-            .ok_or_else(|| urdf_error(&element, "has no <child link=\"…\"/>"))?;
+        let parent = j.parent.ok_or_else(|| urdf_error(&element, "has no <parent link=\"…\"/>"))?;
+        let child = j.child.ok_or_else(|| urdf_error(&element, "has no <child link=\"…\"/>"))?;
         if j.axis == Some(Vec3::zeros()) && j.kind != UrdfJointType::Fixed {
-            return Err(urdf_error(
-                format!("{element}<axis>"),
-                "xyz is the zero vector; a moving joint needs an axis",
-            ));
+            return Err(urdf_error(format!("{element}<axis>"), "xyz is the zero vector; a moving joint needs an axis"));
         }
         self.robot.joints.push(JointData {
             name: j.name,
@@ -675,10 +600,7 @@ fn parse(xml: &str) -> Result<Robot, ModelError> {
         let event = reader.read_event().map_err(|e| {
             urdf_error(
                 "document",
-                format!(
-                    "is not well-formed XML (near byte {}): {e}",
-                    reader.error_position().max(position)
-                ),
+                format!("is not well-formed XML (near byte {}): {e}", reader.error_position().max(position)),
             )
         })?;
         match event {
@@ -699,13 +621,8 @@ fn parse(xml: &str) -> Result<Robot, ModelError> {
                 parser.close(&name)?;
                 parser.stack.pop();
             }
-            Event::Text(text)
-                if parser.stack.is_empty() && !text.iter().all(u8::is_ascii_whitespace) =>
-            {
-                return Err(urdf_error(
-                    "document",
-                    "is not XML: text outside of any element",
-                ));
+            Event::Text(text) if parser.stack.is_empty() && !text.iter().all(u8::is_ascii_whitespace) => {
+                return Err(urdf_error("document", "is not XML: text outside of any element"));
             }
             Event::Eof => break,
             _ => {}
@@ -715,10 +632,7 @@ fn parse(xml: &str) -> Result<Robot, ModelError> {
         return Err(urdf_error("<robot>", "the document has no <robot> element"));
     }
     if let Some(open) = parser.stack.last() {
-        return Err(urdf_error(
-            "document",
-            format!("ends inside <{open}>: not well-formed XML"),
-        ));
+        return Err(urdf_error("document", format!("ends inside <{open}>: not well-formed XML")));
     }
     Ok(parser.robot)
 }
@@ -747,19 +661,13 @@ impl Tree {
         let mut index = HashMap::new();
         for (i, link) in robot.links.iter().enumerate() {
             if index.insert(link.name.clone(), i).is_some() {
-                return Err(urdf_error(
-                    link_element(&link.name),
-                    "the link name appears twice",
-                ));
+                return Err(urdf_error(link_element(&link.name), "the link name appears twice"));
             }
         }
         let mut joint_names = HashMap::new();
         for joint in &robot.joints {
             if joint_names.insert(joint.name.as_str(), ()).is_some() {
-                return Err(urdf_error(
-                    joint_element(&joint.name),
-                    "the joint name appears twice",
-                ));
+                return Err(urdf_error(joint_element(&joint.name), "the joint name appears twice"));
             }
         }
         if robot.links.is_empty() {
@@ -772,12 +680,10 @@ impl Tree {
         for (j, joint) in robot.joints.iter().enumerate() {
             let element = joint_element(&joint.name);
             let find = |which: &str, name: &str| {
-                index.get(name).copied().ok_or_else(|| {
-                    urdf_error(
-                        format!("{element}<{which}>"),
-                        format!("link `{name}` does not exist"),
-                    )
-                })
+                index
+                    .get(name)
+                    .copied()
+                    .ok_or_else(|| urdf_error(format!("{element}<{which}>"), format!("link `{name}` does not exist")))
             };
             let p = find("parent", &joint.parent)?;
             let c = find("child", &joint.child)?;
@@ -832,10 +738,7 @@ impl Tree {
         }
         let roots: Vec<usize> = (0..n).filter(|&i| parent_joint[i].is_none()).collect();
         if roots.len() != 1 {
-            let names: Vec<String> = roots
-                .iter()
-                .map(|&i| format!("`{}`", robot.links[i].name))
-                .collect();
+            let names: Vec<String> = roots.iter().map(|&i| format!("`{}`", robot.links[i].name)).collect();
             return Err(urdf_error(
                 "<robot>",
                 format!(
@@ -845,13 +748,7 @@ impl Tree {
                 ),
             ));
         }
-        Ok(Tree {
-            index,
-            parent_joint,
-            child_joints,
-            ends,
-            root: roots[0],
-        })
+        Ok(Tree { index, parent_joint, child_joints, ends, root: roots[0] })
     }
 
     /// The links of the subtree below `link` that have no children, in
@@ -894,9 +791,7 @@ impl BodyParts {
     fn combine(&self) -> UrdfInertial {
         let mass: f64 = self.parts.iter().map(|p| p.0).sum();
         let com = if mass > 0.0 {
-            self.parts
-                .iter()
-                .fold(Vec3::zeros(), |acc, (m, c, _)| acc + c * (m / mass))
+            self.parts.iter().fold(Vec3::zeros(), |acc, (m, c, _)| acc + c * (m / mass))
         } else {
             Vec3::zeros()
         };
@@ -905,11 +800,7 @@ impl BodyParts {
             let d = c - com;
             inertia += i + (Mat3::identity() * d.norm_squared() - d * d.transpose()) * *m;
         }
-        UrdfInertial {
-            mass,
-            com,
-            inertia: symmetric(inertia),
-        }
+        UrdfInertial { mass, com, inertia: symmetric(inertia) }
     }
 }
 
@@ -920,12 +811,10 @@ fn build_chain(
     tip_link: Option<&str>,
 ) -> Result<UrdfChain, ModelError> {
     let lookup = |key: &str, name: &str| {
-        tree.index.get(name).copied().ok_or_else(|| {
-            urdf_error(
-                format!("{key} = \"{name}\""),
-                format!("the URDF has no link named `{name}`"),
-            )
-        })
+        tree.index
+            .get(name)
+            .copied()
+            .ok_or_else(|| urdf_error(format!("{key} = \"{name}\""), format!("the URDF has no link named `{name}`")))
     };
     let base = match base_link {
         Some(name) => lookup("base_link", name)?,
@@ -937,10 +826,7 @@ fn build_chain(
         None => {
             let leaves = tree.leaves_below(base);
             if leaves.len() != 1 {
-                let names: Vec<String> = leaves
-                    .iter()
-                    .map(|&i| format!("`{}`", robot.links[i].name))
-                    .collect();
+                let names: Vec<String> = leaves.iter().map(|&i| format!("`{}`", robot.links[i].name)).collect();
                 return Err(urdf_error(
                     "tip_link",
                     format!(
@@ -973,13 +859,9 @@ fn build_chain(
     }
     path.reverse();
     let chain_element = format!("chain `{base_name}` -> `{tip_name}`");
-    if path
-        .iter()
-        .all(|&j| robot.joints[j].kind == UrdfJointType::Fixed)
-    {
+    if path.iter().all(|&j| robot.joints[j].kind == UrdfJointType::Fixed) {
         let reason = if path.is_empty() {
-            "is empty (base_link and tip_link are the same link): it has no moving joint"
-                .to_string()
+            "is empty (base_link and tip_link are the same link): it has no moving joint".to_string()
         } else {
             "has no moving joint, only fixed ones".to_string()
         };
@@ -1034,15 +916,7 @@ fn build_chain(
         }
         if let Some(body) = bodies.last_mut() {
             add_link(robot, child, &placement, body, &mut warnings)?;
-            lump_off_chain(
-                robot,
-                tree,
-                child,
-                &placement,
-                &on_path,
-                body,
-                &mut warnings,
-            )?;
+            lump_off_chain(robot, tree, child, &placement, &on_path, body, &mut warnings)?;
         }
     }
     Ok(UrdfChain {
@@ -1077,11 +951,7 @@ fn add_link(
 /// negative principal moment without), and warns of an unusual one (mass 0
 /// with inertia; principal moments violating the triangle inequality).
 /// Checked only for the links that enter a body: the base's are ignored.
-fn check_inertial(
-    name: &str,
-    inertial: &UrdfInertial,
-    warnings: &mut Vec<String>,
-) -> Result<(), ModelError> {
+fn check_inertial(name: &str, inertial: &UrdfInertial, warnings: &mut Vec<String>) -> Result<(), ModelError> {
     let mass = inertial.mass;
     let moments = principal_moments(&inertial.inertia);
     let shown = format!("{:.4e}, {:.4e}, {:.4e}", moments[0], moments[1], moments[2]);
@@ -1097,14 +967,10 @@ fn check_inertial(
             ));
         }
     } else if moments[0] < 0.0 {
-        return Err(urdf_error(
-            element,
-            format!("has a negative principal moment (principal moments {shown})"),
-        ));
+        return Err(urdf_error(element, format!("has a negative principal moment (principal moments {shown})")));
     } else if inertial.inertia != Mat3::zeros() {
-        warnings.push(format!(
-            "link `{name}`: mass 0 with a nonzero inertia (principal moments {shown}); kept as given"
-        ));
+        warnings
+            .push(format!("link `{name}`: mass 0 with a nonzero inertia (principal moments {shown}); kept as given"));
     }
     let [i1, i2, i3] = moments;
     if i3 > 0.0 && i1 + i2 < i3 * (1.0 - TRIANGLE_TOLERANCE) {
@@ -1131,21 +997,15 @@ fn lump_off_chain(
 ) -> Result<(), ModelError> {
     let mut lumped = Vec::new();
     let mut matters = false;
-    let mut todo: Vec<(usize, Transform)> = tree.child_joints[link]
-        .iter()
-        .rev()
-        .filter(|&&j| !on_path[j])
-        .map(|&j| (j, *placement))
-        .collect();
+    let mut todo: Vec<(usize, Transform)> =
+        tree.child_joints[link].iter().rev().filter(|&&j| !on_path[j]).map(|&j| (j, *placement)).collect();
     while let Some((j, parent_placement)) = todo.pop() {
         let joint = &robot.joints[j];
         let child = tree.ends[j].1;
         let child_placement = parent_placement.then(&joint.origin);
         add_link(robot, child, &child_placement, body, warnings)?;
         if joint.kind != UrdfJointType::Fixed
-            || robot.links[child]
-                .inertial
-                .is_some_and(|i| i.mass > 0.0 || i.inertia != Mat3::zeros())
+            || robot.links[child].inertial.is_some_and(|i| i.mass > 0.0 || i.inertia != Mat3::zeros())
         {
             matters = true;
         }
@@ -1203,14 +1063,8 @@ mod tests {
 
     #[test]
     fn triple_accepts_any_whitespace() {
-        let a = Attributes {
-            element: "<x>".into(),
-            pairs: vec![("xyz".into(), " 1\t2\n 3 ".into())],
-        };
-        assert_eq!(
-            a.triple("xyz", Vec3::zeros()).unwrap(),
-            Vec3::new(1.0, 2.0, 3.0)
-        );
+        let a = Attributes { element: "<x>".into(), pairs: vec![("xyz".into(), " 1\t2\n 3 ".into())] };
+        assert_eq!(a.triple("xyz", Vec3::zeros()).unwrap(), Vec3::new(1.0, 2.0, 3.0));
     }
 
     #[test]

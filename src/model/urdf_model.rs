@@ -91,15 +91,25 @@ impl Model {
         let mut parent_alignment = Mat3::identity();
         for (uj, body) in chain.joints.iter().zip(&chain.bodies) {
             let ra = axis_alignment(&uj.axis);
-            let extra = extras.get(&uj.name).copied().unwrap_or(JointExtras { drive: Drive::Rigid, friction: None, friction_without_geometry: false });
+            let extra = extras.get(&uj.name).copied().unwrap_or(JointExtras {
+                drive: Drive::Rigid,
+                friction: None,
+                friction_without_geometry: false,
+            });
             let field = format!("joints.{}", uj.name);
             if extra.friction_without_geometry {
                 let (key, what) = uj.kind.friction_geometry();
-                return Err(ModelError::Invalid { field: format!("{field}.{key}"), reason: format!("friction on this joint needs {what}") });
+                return Err(ModelError::Invalid {
+                    field: format!("{field}.{key}"),
+                    reason: format!("friction on this joint needs {what}"),
+                });
             }
             let friction = match extra.friction {
                 None => None,
-                Some(f) => Some(JointFriction { coefficients: f.coefficients, geometry: engine_geometry(&field, uj.kind, &uj.axis, &ra, f.geometry)? }),
+                Some(f) => Some(JointFriction {
+                    coefficients: f.coefficients,
+                    geometry: engine_geometry(&field, uj.kind, &uj.axis, &ra, f.geometry)?,
+                }),
             };
             joints.push(Joint {
                 kind: uj.kind,
@@ -112,7 +122,11 @@ impl Model {
                 friction,
                 reported_axes: ra,
             });
-            links.push(Link { mass: body.mass, com: ra.transpose() * body.com, inertia: ra.transpose() * body.inertia * ra });
+            links.push(Link {
+                mass: body.mass,
+                com: ra.transpose() * body.com,
+                inertia: ra.transpose() * body.inertia * ra,
+            });
             parent_alignment = ra;
         }
         let tip = chain.tip_rotation * end_point + chain.tip_translation;
@@ -133,7 +147,13 @@ impl Model {
 
 /// The contact geometry of a URDF joint in the engine's link frame, checked
 /// against the joint's kind and axis.
-fn engine_geometry(field: &str, kind: JointKind, axis: &Vec3, ra: &Mat3, g: ContactGeometry) -> Result<ContactGeometry, ModelError> {
+fn engine_geometry(
+    field: &str,
+    kind: JointKind,
+    axis: &Vec3,
+    ra: &Mat3,
+    g: ContactGeometry,
+) -> Result<ContactGeometry, ModelError> {
     match (kind, g) {
         (JointKind::Revolute, ContactGeometry::Bearings { reaction_point, l_a, l_b, d_a, d_b, d_c }) => {
             let off_axis = reaction_point - axis * axis.dot(&reaction_point);
@@ -150,18 +170,27 @@ fn engine_geometry(field: &str, kind: JointKind, axis: &Vec3, ra: &Mat3, g: Cont
                 });
             }
             // On the axis: exactly on the engine's z.
-            Ok(ContactGeometry::Bearings { reaction_point: Vec3::new(0.0, 0.0, axis.dot(&reaction_point)), l_a, l_b, d_a, d_b, d_c })
+            Ok(ContactGeometry::Bearings {
+                reaction_point: Vec3::new(0.0, 0.0, axis.dot(&reaction_point)),
+                l_a,
+                l_b,
+                d_a,
+                d_b,
+                d_c,
+            })
         }
         (JointKind::Prismatic, ContactGeometry::Slider { centre, a, b, c }) => {
             Ok(ContactGeometry::Slider { centre: ra.transpose() * centre, a, b, c })
         }
         (JointKind::Revolute, ContactGeometry::Slider { .. }) => Err(ModelError::Invalid {
             field: format!("{field}.slider"),
-            reason: "slider geometry belongs to prismatic joints; this URDF joint is revolute and takes `bearings`".into(),
+            reason: "slider geometry belongs to prismatic joints; this URDF joint is revolute and takes `bearings`"
+                .into(),
         }),
         (JointKind::Prismatic, ContactGeometry::Bearings { .. }) => Err(ModelError::Invalid {
             field: format!("{field}.bearings"),
-            reason: "bearing geometry belongs to revolute joints; this URDF joint is prismatic and takes `slider`".into(),
+            reason: "bearing geometry belongs to revolute joints; this URDF joint is prismatic and takes `slider`"
+                .into(),
         }),
     }
 }

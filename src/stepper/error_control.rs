@@ -57,7 +57,13 @@ pub(crate) const SHRINK_MIN: f64 = 0.2;
 /// `previous` is the sub-step before, for the velocity error (`None` right
 /// after a restart of the solver: then only the position error counts).
 #[inline(always)]
-pub(crate) fn error_ratio(model: &Model, start: &State, state: &State, h: f64, previous: Option<PreviousSubStep>) -> f64 {
+pub(crate) fn error_ratio(
+    model: &Model,
+    start: &State,
+    state: &State,
+    h: f64,
+    previous: Option<PreviousSubStep>,
+) -> f64 {
     let s = model.integrator;
     let n = model.nq();
     let coefficient = (s.beta - 1.0 / 6.0).abs() * h * h;

@@ -240,7 +240,18 @@ impl Integrator {
     #[inline(always)]
     fn flank_force(&self, i: usize, state: &State) -> f64 {
         match self.model.joints[i].drive.spring() {
-            Some(s) => drive_force(s.stiffness, s.damping, s.clearance, state.q_star[i], state.qd_star[i], state.q[i], state.qd[i]).flank,
+            Some(s) => {
+                drive_force(
+                    s.stiffness,
+                    s.damping,
+                    s.clearance,
+                    state.q_star[i],
+                    state.qd_star[i],
+                    state.q[i],
+                    state.qd[i],
+                )
+                .flank
+            }
             None => f64::INFINITY,
         }
     }
@@ -410,7 +421,8 @@ impl Integrator {
         let st = &self.state;
         let n = st.n_coordinates();
         // Slices of length n let the compiler drop the per-index bounds checks.
-        let (decided, phase, margin, qd, qdd) = (&self.decided[..n], &st.phase[..n], &st.margin[..n], &st.qd[..n], &st.qdd[..n]);
+        let (decided, phase, margin, qd, qdd) =
+            (&self.decided[..n], &st.phase[..n], &st.margin[..n], &st.qd[..n], &st.qdd[..n]);
         for i in 0..n {
             if decided[i] == self.instant {
                 continue;
@@ -509,7 +521,12 @@ impl Integrator {
         if evaluations <= budget {
             return Ok(());
         }
-        Err(StepError::TooMuchWork { time: self.state.time, evaluations, substeps: self.state.steps.accepted, h_min: self.model.integrator.h_min })
+        Err(StepError::TooMuchWork {
+            time: self.state.time,
+            evaluations,
+            substeps: self.state.steps.accepted,
+            h_min: self.model.integrator.h_min,
+        })
     }
 
     /// Solves the state at the current time with the current phases, without
@@ -529,8 +546,13 @@ impl Integrator {
     /// `self.state` (see [`NewmarkSolver::solve`]).
     #[inline(always)]
     pub(crate) fn solve(&mut self, t: f64) -> Result<(), StepError> {
-        let step =
-            SubStep { model: &self.model, data: &mut self.data, inputs: &self.inputs, torques: &self.torques, start: &self.start };
+        let step = SubStep {
+            model: &self.model,
+            data: &mut self.data,
+            inputs: &self.inputs,
+            torques: &self.torques,
+            start: &self.start,
+        };
         self.solver.solve(step, &mut self.state, t)
     }
 
@@ -548,7 +570,8 @@ impl Integrator {
         }
         if self.transitions.len() < TRANSITION_LOG_CAPACITY {
             let n = self.model.nq();
-            let drive_force = if joint < n { self.state.drive_force[joint] } else { self.state.motor_torque[joint - n] };
+            let drive_force =
+                if joint < n { self.state.drive_force[joint] } else { self.state.motor_torque[joint - n] };
             self.transitions.push(Transition { time: self.state.time, joint, from, to, drive_force });
         } else {
             self.transitions_dropped += 1;

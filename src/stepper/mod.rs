@@ -1,7 +1,7 @@
 //! The iterative Newmark stepper with stick–slip switching.
 
-mod inputs;
 mod error_control;
+mod inputs;
 mod integrator;
 mod isa;
 mod newmark;
@@ -9,7 +9,7 @@ mod simulator;
 mod state;
 
 pub use inputs::{DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
-pub use isa::InstructionSet;
 pub use integrator::{Transition, TRANSITION_LOG_CAPACITY};
+pub use isa::InstructionSet;
 pub use simulator::{InitialState, RotorStart, Simulator};
 pub use state::{Energy, Phase, State, StepStatistics};

@@ -16,11 +16,11 @@ use crate::algorithms::rnea::{joint_reaction, rnea};
 use crate::data::Data;
 use crate::error::{NonConvergence, StepError};
 use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force_over_substep};
-use crate::forces::rotor::{rotor_acceleration_inertia, rotor_torques};
 use crate::forces::friction::{
     contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
     stuck_friction,
 };
+use crate::forces::rotor::{rotor_acceleration_inertia, rotor_torques};
 use crate::model::{Drive, DriveSpring, Joint, JointKind, Model};
 
 /// How many iterates back a failed iteration is judged as still converging.
@@ -314,7 +314,8 @@ impl NewmarkSolver {
                 crba(model, data);
                 self.mass_diagonal.clear();
                 self.mass_diagonal.extend((0..model.nq()).map(|i| data.mass_matrix[(i, i)]));
-                self.mass_diagonal.extend(self.rotors.iter().filter_map(|&j| model.joints[j].drive.rotor()).map(|r| r.inertia));
+                self.mass_diagonal
+                    .extend(self.rotors.iter().filter_map(|&j| model.joints[j].drive.rotor()).map(|r| r.inertia));
                 self.factor_newton_matrix(model, data, state, open, h, beta, gamma)?;
                 self.newton_valid = true;
                 self.newton_h = h;
@@ -336,7 +337,14 @@ impl NewmarkSolver {
     /// for joint `joint` (0-based), whose residual `residual` is the largest
     /// after `iterations` iterations; `contracting` when the merit fell a
     /// thousandfold over the last [`RECENT_ITERATES`] iterates.
-    fn diagnose(&self, model: &Model, joint: usize, iterations: usize, residual: f64, contracting: bool) -> NonConvergence {
+    fn diagnose(
+        &self,
+        model: &Model,
+        joint: usize,
+        iterations: usize,
+        residual: f64,
+        contracting: bool,
+    ) -> NonConvergence {
         if self.engagement_changes[joint] > 0 {
             NonConvergence::DriveSwitching
         } else if model.joints[joint].drive.rotor().is_some_and(|r| r.coulomb > 0.0) && iterations > 2 && !contracting {
@@ -356,7 +364,16 @@ impl NewmarkSolver {
     /// and the q, q̇ that the Newmark relations give for it.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn predict(&mut self, model: &Model, inputs: &InputPolynomial, torques: &InputPolynomial, s: &State, st: &mut State, t: f64, h: f64) {
+    fn predict(
+        &mut self,
+        model: &Model,
+        inputs: &InputPolynomial,
+        torques: &InputPolynomial,
+        s: &State,
+        st: &mut State,
+        t: f64,
+        h: f64,
+    ) {
         let n = model.nq();
         // Lagrange weights of q̈ at t_n, t_{n−1}, t_{n−2} extrapolated to t_n + h.
         let (h1, h2) = (self.previous_h[0], self.previous_h[1]);
@@ -517,11 +534,23 @@ impl NewmarkSolver {
     /// [`acceleration_stiffness`]); a unit θ̈_m raises the link's drive force
     /// by K/N and a unit q̈ lowers the rotor's load F/N by K/N.
     #[allow(clippy::too_many_arguments)]
-    fn factor_rotor_row(&mut self, model: &Model, st: &State, open: &[f64], a: usize, c: usize, h: f64, beta: f64, gamma: f64) {
+    fn factor_rotor_row(
+        &mut self,
+        model: &Model,
+        st: &State,
+        open: &[f64],
+        a: usize,
+        c: usize,
+        h: f64,
+        beta: f64,
+        gamma: f64,
+    ) {
         let nf = self.free.len();
         let j = self.rotors[c - self.n];
         let drive = model.joints[j].drive;
-        let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else { unreachable!("rotors belong to motor drives") };
+        let (Some(spring), Some(rotor)) = (drive.spring(), drive.rotor()) else {
+            unreachable!("rotors belong to motor drives")
+        };
         let gear = spring_terms(spring, open, j, st, h, beta, gamma).stiffness;
         let ratio = rotor.gear_ratio;
         self.iteration_matrix[a * nf..(a + 1) * nf].fill(0.0);
@@ -544,15 +573,24 @@ impl NewmarkSolver {
     #[inline(always)]
     /// `open` holds the clearance margins at the sub-step's start (empty for
     /// a zero-length solve): see [`drive_force_over_substep`].
-    fn joint_forces(&mut self, model: &Model, data: &Data, st: &mut State, open: &[f64], first: bool) -> (f64, f64, usize) {
+    fn joint_forces(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        st: &mut State,
+        open: &[f64],
+        first: bool,
+    ) -> (f64, f64, usize) {
         let n = model.nq();
         // Slices of length n let the compiler drop the per-index bounds checks.
-        let (q, qd, q_star, qd_star, phase) = (&st.q[..n], &st.qd[..n], &st.q_star[..n], &st.qd_star[..n], &st.phase[..n]);
+        let (q, qd, q_star, qd_star, phase) =
+            (&st.q[..n], &st.qd[..n], &st.q_star[..n], &st.qd_star[..n], &st.phase[..n]);
         let (normal_load, lever_load) = (&mut st.normal_load[..n], &mut st.lever_load[..n]);
         let (drive_force_out, damping_force) = (&mut st.drive_force[..n], &mut st.damping_force[..n]);
         let (friction_force, margin) = (&mut st.friction_force[..n], &mut st.margin[..n]);
         let clearance_edge = &mut st.clearance_margin[..n];
-        let (tau, reaction_force, reaction_moment) = (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
+        let (tau, reaction_force, reaction_moment) =
+            (&data.tau[..n], &data.reaction_force[..n], &data.reaction_moment[..n]);
         let correction = &mut self.correction[..n + self.rotors.len()];
         let (engaged, engagement_changes) = (&mut self.engaged[..n], &mut self.engagement_changes[..n]);
         let mut worst: f64 = 0.0;
@@ -581,10 +619,19 @@ impl NewmarkSolver {
                     margin[i] = f64::INFINITY;
                     clearance_edge[i] = f64::INFINITY;
                 }
-                Drive::Flexible { stiffness, damping, clearance } | Drive::Motor { stiffness, damping, clearance, .. } => {
+                Drive::Flexible { stiffness, damping, clearance }
+                | Drive::Motor { stiffness, damping, clearance, .. } => {
                     let open_at_start = open.get(i).is_some_and(|&m| m < 0.0);
-                    let drive =
-                        drive_force_over_substep(stiffness, damping, clearance, open_at_start, q_star[i], qd_star[i], q[i], qd[i]);
+                    let drive = drive_force_over_substep(
+                        stiffness,
+                        damping,
+                        clearance,
+                        open_at_start,
+                        q_star[i],
+                        qd_star[i],
+                        q[i],
+                        qd[i],
+                    );
                     let fd = drive.force;
                     if !first && drive.engaged != engaged[i] {
                         engagement_changes[i] += 1;
@@ -638,8 +685,10 @@ impl NewmarkSolver {
                 // joint's force scale, as the rotor's error does: a rotor is
                 // solved as precisely as the link it drives.
                 let joint = &model.joints[j];
-                let link_scale =
-                    st.drive_force[j].abs() + st.friction_force[j].abs() + data.tau[j].abs() + joint_load_scale(data, joint, j);
+                let link_scale = st.drive_force[j].abs()
+                    + st.friction_force[j].abs()
+                    + data.tau[j].abs()
+                    + joint_load_scale(data, joint, j);
                 let scale = torques.scale + link_scale / rotor.gear_ratio;
                 let relative = torques.residual / scale.max(f64::MIN_POSITIVE);
                 if relative.abs() > worst {
@@ -687,9 +736,26 @@ struct DriveSpringTerms {
 /// [`DriveSpringTerms`] of joint `i`'s drive spring in the current iterate
 /// `st` of a sub-step of length `h` (`open`: see [`drive_force_over_substep`]).
 #[inline(always)]
-fn spring_terms(spring: DriveSpring, open: &[f64], i: usize, st: &State, h: f64, beta: f64, gamma: f64) -> DriveSpringTerms {
+fn spring_terms(
+    spring: DriveSpring,
+    open: &[f64],
+    i: usize,
+    st: &State,
+    h: f64,
+    beta: f64,
+    gamma: f64,
+) -> DriveSpringTerms {
     let DriveSpring { stiffness, damping, clearance } = spring;
     let open_at_start = open.get(i).is_some_and(|&m| m < 0.0);
-    let drive = drive_force_over_substep(stiffness, damping, clearance, open_at_start, st.q_star[i], st.qd_star[i], st.q[i], st.qd[i]);
+    let drive = drive_force_over_substep(
+        stiffness,
+        damping,
+        clearance,
+        open_at_start,
+        st.q_star[i],
+        st.qd_star[i],
+        st.q[i],
+        st.qd[i],
+    );
     DriveSpringTerms { stiffness: acceleration_stiffness(stiffness, damping, drive.engaged, h, beta, gamma) }
 }

@@ -2,9 +2,9 @@
 //! communication intervals by the iterative Newmark stepper.
 
 use super::inputs::{DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use super::integrator::{Integrator, Transition};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
-use super::integrator::{Integrator, Transition};
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics, update_joint_transforms};
 use crate::algorithms::rnea::{joint_reactions, rnea};
@@ -36,7 +36,6 @@ pub enum RotorStart {
         omega_m: Vec<f64>,
     },
 }
-
 
 /// Start values that override the default initial state (q = q*, at rest).
 #[derive(Debug, Clone, Copy)]
@@ -183,7 +182,10 @@ impl Simulator {
             let n = self.core.model.nq();
             for (field, v) in [("theta_m_start", theta_m), ("omega_m_start", omega_m)] {
                 if v.len() != n {
-                    return Err(ModelError::Invalid { field: field.into(), reason: format!("{} values for {n} joints", v.len()) });
+                    return Err(ModelError::Invalid {
+                        field: field.into(),
+                        reason: format!("{} values for {n} joints", v.len()),
+                    });
                 }
                 if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
                     return Err(ModelError::InvalidParameter {
@@ -213,7 +215,12 @@ impl Simulator {
     /// Starts a simulation at time `t0` with the drive inputs at t0. Flexible
     /// joints start at q = q*, at rest and stuck (when they have friction)
     /// unless `initial` gives other start values.
-    pub fn initialize(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
+    pub fn initialize(
+        &mut self,
+        t0: f64,
+        inputs: &DriveInputs,
+        initial: Option<InitialState>,
+    ) -> Result<(), StepError> {
         self.initialize_checked(t0, inputs, initial, State::check_finite)
     }
 
@@ -252,7 +259,12 @@ impl Simulator {
         result
     }
 
-    fn initialize_inner(&mut self, t0: f64, inputs: &DriveInputs, initial: Option<InitialState>) -> Result<(), StepError> {
+    fn initialize_inner(
+        &mut self,
+        t0: f64,
+        inputs: &DriveInputs,
+        initial: Option<InitialState>,
+    ) -> Result<(), StepError> {
         self.core.inputs.set(t0, inputs);
         self.core.torques.t0 = t0;
         forget_joint_transforms(&mut self.core.data);
@@ -307,7 +319,8 @@ impl Simulator {
                 self.scratch[i] = if joint.drive.is_flexible() { 0.0 } else { inputs.qdd_star[i] };
             }
             let st = &self.core.state;
-            let qd: Vec<f64> = (0..n).map(|i| if self.core.model.joints[i].drive.is_flexible() { 0.0 } else { st.qd[i] }).collect();
+            let qd: Vec<f64> =
+                (0..n).map(|i| if self.core.model.joints[i].drive.is_flexible() { 0.0 } else { st.qd[i] }).collect();
             update_joint_transforms(&self.core.model, &mut self.core.data, &st.q[..n]);
             rnea(&self.core.model, &mut self.core.data, &st.q[..n], &qd, &self.scratch);
             forget_joint_transforms(&mut self.core.data);
@@ -323,7 +336,8 @@ impl Simulator {
                 RotorStart::StaticEquilibrium => {
                     // (2.1) at rest: F = k·(e − σΔ) with e = q* − q.
                     let force = self.core.data.tau[j];
-                    let deflection = if force == 0.0 { 0.0 } else { force / spring.stiffness + spring.clearance.copysign(force) };
+                    let deflection =
+                        if force == 0.0 { 0.0 } else { force / spring.stiffness + spring.clearance.copysign(force) };
                     (ratio * (st.q[j] + deflection), 0.0)
                 }
                 RotorStart::At { theta_m, omega_m } => (theta_m[j], omega_m[j]),
@@ -402,7 +416,11 @@ impl Simulator {
 
     /// `check` of the current state as a step result.
     fn checked(&self, check: impl FnOnce(&State) -> Result<(), (String, f64)>) -> Result<(), StepError> {
-        check(&self.core.state).map_err(|(quantity, value)| StepError::NonFiniteOutput { quantity, value, time: self.core.state.time })
+        check(&self.core.state).map_err(|(quantity, value)| StepError::NonFiniteOutput {
+            quantity,
+            value,
+            time: self.core.state.time,
+        })
     }
 
     /// Recomputes the reported quantities that are not needed while stepping:
@@ -439,7 +457,9 @@ impl Simulator {
             .joints
             .iter()
             .enumerate()
-            .map(|(i, j)| j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i])))
+            .map(|(i, j)| {
+                j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i]))
+            })
             .sum();
         st.energy.rotor_kinetic = self
             .core
@@ -447,10 +467,11 @@ impl Simulator {
             .rotors()
             .iter()
             .enumerate()
-            .filter_map(|(r, &j)| model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r]))
+            .filter_map(|(r, &j)| {
+                model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r])
+            })
             .sum();
     }
-
 }
 
 /// The phase a spring-driven joint or a rotor starts in at velocity `qd`:

@@ -120,7 +120,12 @@ impl Table {
             }
         }
         let [k, h, clearance, gear_ratio, inertia, viscous, coulomb] = values;
-        Some(Drive::Motor { stiffness: k, damping: h, clearance, rotor: Rotor { gear_ratio, inertia, viscous, coulomb } })
+        Some(Drive::Motor {
+            stiffness: k,
+            damping: h,
+            clearance,
+            rotor: Rotor { gear_ratio, inertia, viscous, coulomb },
+        })
     }
 }
 
@@ -143,7 +148,6 @@ pub fn resolvable(drive: &Drive) -> bool {
 pub fn torque() -> impl Strategy<Value = f64> {
     prop_oneof![8 => -2.0..2.0f64, 1 => Just(1e6), 1 => Just(-1e6), 1 => Just(0.0)]
 }
-
 
 /// The seed of the generated-table properties: fixed
 /// ([`DEFAULT_SEED`]) unless `STICKSLIP_MOTOR_FUZZ_SEED` gives another

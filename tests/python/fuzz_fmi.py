@@ -76,7 +76,7 @@ def _mutate(rng: random.Random, data: bytes) -> bytes:
         b += bytes(rng.randrange(256) for _ in range(rng.randint(1, 32)))
     elif b:
         i = rng.randrange(len(b))
-        b[i:i + rng.randint(1, 64)] = bytes(len(b[i:i + 64]))
+        b[i : i + rng.randint(1, 64)] = bytes(len(b[i : i + 64]))
     return bytes(b)
 
 
@@ -142,8 +142,17 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
     bools = [v for v in md.modelVariables if v.type == "Boolean"]
     real_outputs = [v.valueReference for v in reals if v.causality == "output"]
     inputs = [v for v in reals if v.causality == "input"]
-    counts = {"calls": 0, "ok": 0, "errors": 0, "discards": 0, "steps_ok": 0, "states_mutated": 0,
-              "states_restored": 0, "corrupt_urdf_refused": 0, "motor_calls": 0}
+    counts = {
+        "calls": 0,
+        "ok": 0,
+        "errors": 0,
+        "discards": 0,
+        "steps_ok": 0,
+        "states_mutated": 0,
+        "states_restored": 0,
+        "corrupt_urdf_refused": 0,
+        "motor_calls": 0,
+    }
     # Motor drives: their torque inputs, and the motor variables by kind.
     by_name = {v.name: v for v in md.modelVariables}
     motor = {
@@ -160,15 +169,22 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
     t = 0.0
 
     def new_slave():
-        s = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=f"fuzz{seed}")
+        s = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=unzipdir,
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName=f"fuzz{seed}",
+        )
         s.instantiate()
         return s
 
     def outputs_finite(after: str):
         values = slave.getReal(real_outputs)
-        bad = [(md.modelVariables[vr].name if vr < len(md.modelVariables) else vr, x)
-               for vr, x in zip(real_outputs, values) if not math.isfinite(x)]
+        bad = [
+            (md.modelVariables[vr].name if vr < len(md.modelVariables) else vr, x)
+            for vr, x in zip(real_outputs, values)
+            if not math.isfinite(x)
+        ]
         if bad:
             violations.append(f"seed {seed}: fmi2OK {after}, then non-finite outputs {bad[:3]}")
 
@@ -180,8 +196,12 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         if directory is None:
             return
         log = LogCapture()
-        other = FMU2Slave(guid=md.guid, unzipDirectory=directory, modelIdentifier=md.coSimulation.modelIdentifier,
-                          instanceName=f"corrupt{seed}")
+        other = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=directory,
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName=f"corrupt{seed}",
+        )
         try:
             other.instantiate(callbacks=log.callbacks)
         except Exception:  # fmpy: "Failed to instantiate model"
@@ -193,8 +213,25 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         other.freeInstance()
         violations.append(f"seed {seed}: fmi2Instantiate accepted a mutated URDF")
 
-    actions = ["step", "set", "set_inputs", "get", "derivatives", "setup", "enter", "exit", "get_state",
-               "set_state", "serialize", "deserialize", "reset", "terminate", "free", "bool", "start"]
+    actions = [
+        "step",
+        "set",
+        "set_inputs",
+        "get",
+        "derivatives",
+        "setup",
+        "enter",
+        "exit",
+        "get_state",
+        "set_state",
+        "serialize",
+        "deserialize",
+        "reset",
+        "terminate",
+        "free",
+        "bool",
+        "start",
+    ]
     weights = [40, 15, 12, 6, 3, 2, 2, 2, 3, 3, 3, 4, 2, 1, 1, 2, 3]
     if corrupt.urdfs:
         actions, weights = actions + ["corrupt_urdf"], weights + [2]
@@ -335,8 +372,11 @@ def run_child(fmu: str, seed: int, calls: int, timeout: float) -> dict:
     except subprocess.TimeoutExpired:
         return {"seed": seed, "counts": {}, "violations": [f"seed {seed}: hang (no result in {timeout} s)"]}
     if p.returncode != 0:
-        return {"seed": seed, "counts": {},
-                "violations": [f"seed {seed}: child died with status {p.returncode}: {p.stderr[-800:]}"]}
+        return {
+            "seed": seed,
+            "counts": {},
+            "violations": [f"seed {seed}: child died with status {p.returncode}: {p.stderr[-800:]}"],
+        }
     result = json.loads(p.stdout.strip().splitlines()[-1])
     result["wall_s"] = time.perf_counter() - started
     return result
@@ -351,8 +391,11 @@ def fuzz(fmu: str, seed: int, batches: int, calls: int, timeout: float = 300.0, 
             total[k] = total.get(k, 0) + v
         violations += r["violations"]
         if verbose:
-            print(f"batch {b + 1}/{batches} seed {r['seed']}: {r['counts']} "
-                  f"{len(r['violations'])} violations ({r.get('wall_s', 0):.1f} s)", flush=True)
+            print(
+                f"batch {b + 1}/{batches} seed {r['seed']}: {r['counts']} "
+                f"{len(r['violations'])} violations ({r.get('wall_s', 0):.1f} s)",
+                flush=True,
+            )
     return {"counts": total, "violations": violations}
 
 

@@ -127,8 +127,19 @@ def direct_run(end: float = RUN_TIME, interval: float = INTERVAL) -> dict:
     """The engine's own run of the reference motion (``simulate_reference``), cached per process."""
     out = scratch_dir() / f"direct_{end:g}_{interval:g}.csv"
     cmd = [
-        _cargo(), "run", "--release", "--quiet", "--bin", "simulate_reference", "--",
-        "--out", str(out), "--interval", repr(interval), "--end", repr(end),
+        _cargo(),
+        "run",
+        "--release",
+        "--quiet",
+        "--bin",
+        "simulate_reference",
+        "--",
+        "--out",
+        str(out),
+        "--interval",
+        repr(interval),
+        "--end",
+        repr(end),
     ]
     subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     return read_csv(out)

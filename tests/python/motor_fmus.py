@@ -33,8 +33,16 @@ ROTOR_INERTIA = {1: 3.0e-4, 3: 1.2e-4}
 MOTOR_VISCOUS = {1: 2.0e-4, 3: 1.0e-4}
 MOTOR_COULOMB = {1: 0.03, 3: 0.02}
 # The energy account of a motor FMU: constant over a run.
-BALANCE = {"E_kin": 1, "E_pot": 1, "E_spring": 1, "E_rotor": 1, "W_drive": -1, "Q_friction": 1, "Q_damping": 1,
-           "Q_motor": 1}
+BALANCE = {
+    "E_kin": 1,
+    "E_pot": 1,
+    "E_spring": 1,
+    "E_rotor": 1,
+    "W_drive": -1,
+    "Q_friction": 1,
+    "Q_damping": 1,
+    "Q_motor": 1,
+}
 
 # Per motor joint, segments (t_start, tau_m, tau_m', tau_m'') in time order: from t_start on,
 # tau_m(t) = tau_m + tau_m' (t - t_start) + tau_m'' (t - t_start)^2 / 2 (N.m, N.m/s, N.m/s2).

@@ -57,8 +57,9 @@ def soak(fmu: str, cycles: int, seconds: float, interval: float = 1e-3) -> dict:
     out_vrs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
 
     def start(name):
-        s = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=name)
+        s = FMU2Slave(
+            guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name
+        )
         s.instantiate()
         s.setupExperiment(startTime=0.0)
         s.enterInitializationMode()
@@ -97,8 +98,14 @@ def soak(fmu: str, cycles: int, seconds: float, interval: float = 1e-3) -> dict:
     substeps = s.getReal([by_name["n_substeps"].valueReference])[0]
     s.terminate()
     s.freeInstance()
-    return {"samples": samples, "cycles_wall_s": cycles_wall, "run_wall_s": run_wall, "finite": finite,
-            "n_stick": n_stick, "n_substeps": substeps}
+    return {
+        "samples": samples,
+        "cycles_wall_s": cycles_wall,
+        "run_wall_s": run_wall,
+        "finite": finite,
+        "n_stick": n_stick,
+        "n_substeps": substeps,
+    }
 
 
 def growth_kib(samples) -> int:
@@ -117,10 +124,12 @@ def main(argv=None) -> int:
     r = soak(a.fmu, a.cycles, a.seconds)
     print(json.dumps(r))
     c, run = r["samples"]["cycles"], r["samples"]["run"]
-    print(f"{a.cycles} cycles in {r['cycles_wall_s']:.1f} s: RSS {c[0][1]} -> {c[len(c) // 2][1]} -> {c[-1][1]} KiB "
-          f"(second half {growth_kib(c):+d} KiB); {a.seconds} s simulated in {r['run_wall_s']:.1f} s: RSS "
-          f"{run[0][1]} -> {run[len(run) // 2][1]} -> {run[-1][1]} KiB (second half {growth_kib(run):+d} KiB); "
-          f"stiction phases {r['n_stick']}, {r['n_substeps']:.0f} sub-steps, outputs finite: {r['finite']}")
+    print(
+        f"{a.cycles} cycles in {r['cycles_wall_s']:.1f} s: RSS {c[0][1]} -> {c[len(c) // 2][1]} -> {c[-1][1]} KiB "
+        f"(second half {growth_kib(c):+d} KiB); {a.seconds} s simulated in {r['run_wall_s']:.1f} s: RSS "
+        f"{run[0][1]} -> {run[len(run) // 2][1]} -> {run[-1][1]} KiB (second half {growth_kib(run):+d} KiB); "
+        f"stiction phases {r['n_stick']}, {r['n_substeps']:.0f} sub-steps, outputs finite: {r['finite']}"
+    )
     return 0
 
 

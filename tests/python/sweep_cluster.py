@@ -42,7 +42,9 @@ class Cluster:
         port = self.address.rsplit(":", 1)[1]
         self.scheduler = subprocess.Popen(
             [DASK, "scheduler", "--host", "127.0.0.1", "--port", port, "--no-dashboard"],
-            stdout=subprocess.DEVNULL, stderr=open(self.root / "scheduler.log", "w"))
+            stdout=subprocess.DEVNULL,
+            stderr=open(self.root / "scheduler.log", "w"),
+        )
 
     def start_worker(self):
         k = len(self.workers)
@@ -50,9 +52,25 @@ class Cluster:
         tmp.mkdir()
         env = dict(os.environ, TMPDIR=str(tmp))
         p = subprocess.Popen(
-            [DASK, "worker", self.address, "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
-             "--no-dashboard", "--local-directory", str(tmp), "--death-timeout", "60"],
-            stdout=subprocess.DEVNULL, stderr=open(self.root / f"worker{k}.log", "w"), env=env)
+            [
+                DASK,
+                "worker",
+                self.address,
+                "--host",
+                "127.0.0.1",
+                "--nthreads",
+                "1",
+                "--no-nanny",
+                "--no-dashboard",
+                "--local-directory",
+                str(tmp),
+                "--death-timeout",
+                "60",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=open(self.root / f"worker{k}.log", "w"),
+            env=env,
+        )
         self.workers.append((p, tmp))
 
     def wait(self, n: int, timeout: float = 60.0):
@@ -108,8 +126,13 @@ def _interruptible():
 
 def sweep_process(*args) -> subprocess.Popen:
     """`stickslip sweep ARGS` running, its output on a pipe, interruptible by SIGINT."""
-    return subprocess.Popen([STICKSLIP, "sweep", *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, preexec_fn=_interruptible)
+    return subprocess.Popen(
+        [STICKSLIP, "sweep", *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        preexec_fn=_interruptible,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -122,6 +145,7 @@ def cluster(tmp_path_factory):
 
 def write_spec(path, body: str, stop_time=0.1, step=1e-3):
     """A SPEC file at `path`: the reference motion through the FMU under test, then `body`."""
-    path.write_text(f'stop_time = {stop_time}\ncommunication_step = {step}\nmotion = "reference"\n'
-                    f'fmu = "{require_fmu()}"\n' + body)
+    path.write_text(
+        f'stop_time = {stop_time}\ncommunication_step = {step}\nmotion = "reference"\nfmu = "{require_fmu()}"\n' + body
+    )
     return path

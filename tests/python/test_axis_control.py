@@ -44,8 +44,16 @@ except ImportError:  # pragma: no cover - when motor_fmus.py is not there: build
         if prebuilt:
             return Path(prebuilt).resolve()
         out = scratch_dir() / "motor.fmu"
-        cmd = ["bash", "scripts/build_fmu.sh", "--platforms", "linux64", "--model",
-               str(ROOT / "models" / "reference_rrpr_motor.toml"), "--out", str(out)]
+        cmd = [
+            "bash",
+            "scripts/build_fmu.sh",
+            "--platforms",
+            "linux64",
+            "--model",
+            str(ROOT / "models" / "reference_rrpr_motor.toml"),
+            "--out",
+            str(out),
+        ]
         r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         if r.returncode != 0 or not out.is_file():
             raise RuntimeError(f"{' '.join(cmd)} failed (exit {r.returncode}):\n{r.stdout[-4000:]}")

@@ -94,7 +94,11 @@ CASES = {
     "doStep-before-initialization": (False, lambda s: s.fmu.doStep(0.0, 1e-3), ["fmi2DoStep"]),
     "exitInit-before-enterInit": (False, lambda s: s.fmu.exitInitializationMode(), ["fmi2ExitInitializationMode"]),
     "enterInit-twice": ("initmode", lambda s: s.fmu.enterInitializationMode(), ["fmi2EnterInitializationMode"]),
-    "setupExperiment-in-initmode": ("initmode", lambda s: s.fmu.setupExperiment(startTime=0.0), ["fmi2SetupExperiment"]),
+    "setupExperiment-in-initmode": (
+        "initmode",
+        lambda s: s.fmu.setupExperiment(startTime=0.0),
+        ["fmi2SetupExperiment"],
+    ),
     "nan-input-in-initmode": ("initmode", lambda s: s.set("q_star[3]", math.nan), ["q_star[3]"]),
     "negative-mass-before-initialization": (False, lambda s: s.set("m[2]", -15.0), ["m[2]"]),
 }
@@ -163,7 +167,11 @@ def _raw_instantiate(name=b"raw", fmu_type=fmi2CoSimulation, guid=None, location
     "case, kwargs, words",
     [
         ("wrong-guid", {"guid": "{00000000-0000-0000-0000-000000000000}"}, ["fmi2Instantiate", "fmuGUID"]),
-        ("missing-resources", {"location": "file:///nonexistent/stickslip/resources"}, ["fmi2Instantiate", "model.toml"]),
+        (
+            "missing-resources",
+            {"location": "file:///nonexistent/stickslip/resources"},
+            ["fmi2Instantiate", "model.toml"],
+        ),
         ("not-a-file-uri", {"location": "http://example.invalid/resources"}, ["fmi2Instantiate", "http://"]),
         ("null-resource-location", {"location": None}, ["fmi2Instantiate", "fmuResourceLocation"]),
         ("model-exchange", {"fmu_type": fmi2ModelExchange}, ["fmuType"]),
@@ -203,7 +211,7 @@ def test_resource_uri_forms_with_percent_encoding(form):
     uri = dst.as_uri()  # file:///... with %20 and %25
     assert uri.startswith("file:///") and "%20" in uri and "%25" in uri
     if form == "file:/":
-        uri = "file:/" + uri[len("file:///"):]
+        uri = "file:/" + uri[len("file:///") :]
     comp, log, s = _raw_instantiate(location=uri)
     try:
         assert comp, f"fmi2Instantiate({uri}) returned NULL:\n{log.text()}"

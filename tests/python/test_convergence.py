@@ -49,12 +49,13 @@ def friction(mu: float) -> dict:
 SENSITIVE_MU = (0.28, 0.3, 0.36)
 
 
-
-
 def default_tolerance() -> float:
     """The FMU's own error_tolerance (its start value)."""
-    return float(model_description().modelVariables[
-        [v.name for v in model_description().modelVariables].index("error_tolerance")].start)
+    return float(
+        model_description()
+        .modelVariables[[v.name for v in model_description().modelVariables].index("error_tolerance")]
+        .start
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -71,8 +72,9 @@ def test_spread_formula_against_hand_computed_numbers():
     assert spread(0.0, 0.0) == 0.0  # a rigid joint's stick count: 0 and 0 agree
     assert spread(0.0, 1e-16) == pytest.approx(0.1)  # below the floor 1e-15: scaled by the floor
     assert math.isnan(spread(float("nan"), 1.0)) and math.isnan(spread(None, 1.0))
-    np.testing.assert_allclose(spread(np.array([1.0, 10.0, 0.0]), np.array([1.1, 10.0, 3.0])),
-                               [0.1 / 1.1, 0.0, 1.0], rtol=1e-15)
+    np.testing.assert_allclose(
+        spread(np.array([1.0, 10.0, 0.0]), np.array([1.1, 10.0, 3.0])), [0.1 / 1.1, 0.0, 1.0], rtol=1e-15
+    )
     s = {"max_eps": 0.001, "final_eps": 0.3, "n_stick[3]": 0.2, "n_stick[1]": float("nan")}
     assert convergence.not_converged(s, 0.01) == ["final_eps", "n_stick[3]"]
     assert convergence.not_converged(s, 0.25) == ["final_eps"]
@@ -127,8 +129,15 @@ def test_api_spreads_equal_two_hand_made_runs_and_flag_sensitive_variant():
     smooth = check_convergence({"mu_k[3]": 0.15, "mu_s[3]": 0.2}, fmu=fmu, stop_time=0.3)
     assert smooth.status == "checked" and smooth.rerun == {"error_tolerance": tol / 10}
     main = run_variant(digest, 0, {"mu_k[3]": 0.15, "mu_s[3]": 0.2}, 0.3, 1e-3, reference_inputs, fmu_data=data)
-    tight = run_variant(digest, 0, {"mu_k[3]": 0.15, "mu_s[3]": 0.2, "error_tolerance": tol / 10}, 0.3, 1e-3,
-                        reference_inputs, fmu_data=data)
+    tight = run_variant(
+        digest,
+        0,
+        {"mu_k[3]": 0.15, "mu_s[3]": 0.2, "error_tolerance": tol / 10},
+        0.3,
+        1e-3,
+        reference_inputs,
+        fmu_data=data,
+    )
     for m, s in smooth.spreads.items():
         a, b = main[m], tight[m]
         assert smooth.metrics[m] == a and smooth.tight[m] == b, m
@@ -144,7 +153,8 @@ def test_api_spreads_equal_two_hand_made_runs_and_flag_sensitive_variant():
         if c.not_converged:
             flagged[mu] = c
     assert flagged, "no clearance variant flagged:\n" + "\n".join(
-        check_convergence(CLEARANCES | friction(mu), fmu=fmu, stop_time=2.0).report() for mu in SENSITIVE_MU)
+        check_convergence(CLEARANCES | friction(mu), fmu=fmu, stop_time=2.0).report() for mu in SENSITIVE_MU
+    )
     c = next(iter(flagged.values()))
     assert "NOT CONVERGED" in c.report() and "WARNING: not converged" in c.warning()
 
@@ -167,9 +177,11 @@ def test_checked_sweep_has_spreads_and_summary_flags_variants(cluster, tmp_path)
 
     # μ_k[3] 0.28, 0.3, 0.36 (μ_s[3] = 0.36, μ1 = 0.3): with the clearances each flagged
     # stick counts or times with the FMU of this commit; the test asks for one
-    body = ('[grid]\n"Delta[1]" = [0.0, 0.03490658503988659]\n"Delta[3]" = [0.002]\n'
-            '"mu_k[1]" = [0.3]\n"mu_s[1]" = [0.3]\n'
-            f'"mu_k[3]" = [{", ".join(str(mu) for mu in SENSITIVE_MU)}]\n"mu_s[3]" = [0.36]\n')
+    body = (
+        '[grid]\n"Delta[1]" = [0.0, 0.03490658503988659]\n"Delta[3]" = [0.002]\n'
+        '"mu_k[1]" = [0.3]\n"mu_s[1]" = [0.3]\n'
+        f'"mu_k[3]" = [{", ".join(str(mu) for mu in SENSITIVE_MU)}]\n"mu_s[3]" = [0.36]\n'
+    )
     spec = write_spec(tmp_path / "checked.toml", body, stop_time=2.0)
     out = tmp_path / "out"
     p = sweep(spec, "--out", out, "--scheduler", cluster.address, "--check-convergence")
@@ -184,8 +196,15 @@ def test_checked_sweep_has_spreads_and_summary_flags_variants(cluster, tmp_path)
     data = require_fmu().read_bytes()
     r = rows.iloc[-1]
     params = {n: r[n] for n in ("Delta[1]", "Delta[3]", "mu_k[1]", "mu_s[1]", "mu_k[3]", "mu_s[3]")}
-    tight = run_variant(content_hash(data), 99, params | {"error_tolerance": default_tolerance() / 10}, 2.0, 1e-3,
-                        reference_inputs, fmu_data=data)
+    tight = run_variant(
+        content_hash(data),
+        99,
+        params | {"error_tolerance": default_tolerance() / 10},
+        2.0,
+        1e-3,
+        reference_inputs,
+        fmu_data=data,
+    )
     for m in metrics:
         assert r[spread_name(m)] == spread(r[m], tight[m]), m
 
@@ -215,8 +234,12 @@ def test_checked_sweep_has_spreads_and_summary_flags_variants(cluster, tmp_path)
     from stickslip import summary
 
     record = json.loads((out / "sweep.json").read_text())["convergence"]
-    assert record == {"fraction": 1.0, "rerun": {"error_tolerance": default_tolerance() / 10},
-                      "method": record["method"], "checked": 6}
+    assert record == {
+        "fraction": 1.0,
+        "rerun": {"error_tolerance": default_tolerance() / 10},
+        "method": record["method"],
+        "checked": 6,
+    }
     lenient = summary.markdown(rows, spec_module.load(spec), metrics, threshold=10, convergence=record)
     assert "**0 of 6 checked variants**" in lenient and "**no**:" not in lenient and " ⚠ |" not in lenient
 
@@ -238,8 +261,16 @@ def test_fraction_same_variants_on_rerun_and_resume(cluster, tmp_path):
     expected = selected_runs(20, 0.25, 0)  # a grid-only SPEC has seed 0
     checked = []
     for name in ("a", "b"):
-        p = sweep(spec, "--out", tmp_path / name, "--scheduler", cluster.address, "--check-convergence",
-                  "--convergence-fraction", "0.25")
+        p = sweep(
+            spec,
+            "--out",
+            tmp_path / name,
+            "--scheduler",
+            cluster.address,
+            "--check-convergence",
+            "--convergence-fraction",
+            "0.25",
+        )
         assert p.returncode == 0, p.stdout + p.stderr
         rows = pd.read_parquet(tmp_path / name / "results.parquet")
         checked.append(set(rows.loc[rows["convergence_status"] == "checked", "run"]))
@@ -257,16 +288,18 @@ def test_fraction_same_variants_on_rerun_and_resume(cluster, tmp_path):
     for f in parts:
         f.unlink()
     pq.write_table(kept, out / "parts" / "part-interrupted-00001.parquet")
-    p = sweep(spec, "--out", out, "--scheduler", cluster.address, "--check-convergence",
-              "--convergence-fraction", "0.25")
+    p = sweep(
+        spec, "--out", out, "--scheduler", cluster.address, "--check-convergence", "--convergence-fraction", "0.25"
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     assert "10 already in" in p.stdout and "10 to run" in p.stdout, p.stdout
     rows = pd.read_parquet(out / "results.parquet")
     assert list(rows["run"]) == list(range(20))
     assert set(rows.loc[rows["convergence_status"] == "checked", "run"]) == expected
     # another fraction into the same DIR is another sweep
-    p = sweep(spec, "--out", out, "--scheduler", cluster.address, "--check-convergence",
-              "--convergence-fraction", "0.5")
+    p = sweep(
+        spec, "--out", out, "--scheduler", cluster.address, "--check-convergence", "--convergence-fraction", "0.5"
+    )
     assert p.returncode == 1 and "--convergence-fraction 0.25" in p.stderr, p.stderr
 
 
@@ -281,8 +314,9 @@ def test_failed_check_run_keeps_main_row(tmp_path):
 
     path = write_spec(tmp_path / "fail.toml", '[grid]\n"mu_k[3]" = [0.1, 0.15, 0.25]\n', stop_time=0.05)
     spec = spec_module.load(path)
-    stats = run_sweep(spec, tmp_path / "checked", workers=1, progress_tty=False,
-                      check=Check(1.0, rerun={"error_tolerance": 0.5}))
+    stats = run_sweep(
+        spec, tmp_path / "checked", workers=1, progress_tty=False, check=Check(1.0, rerun={"error_tolerance": 0.5})
+    )
     plain = run_sweep(spec, tmp_path / "plain", workers=1, progress_tty=False)["rows"]
     rows = stats["rows"]
     assert list(rows["status"]) == ["ok", "ok", "refused"]
@@ -291,8 +325,7 @@ def test_failed_check_run_keeps_main_row(tmp_path):
         assert rows[spread_name(m)].isna().all()
         pd.testing.assert_series_equal(rows[m], plain[m], check_exact=True)
     assert all("error_tolerance" in msg for msg in rows["convergence_message"][:2]), rows["convergence_message"]
-    summary.write(rows, spec, stats["metrics"], tmp_path / "checked", threshold=0.01,
-                  convergence=stats["convergence"])
+    summary.write(rows, spec, stats["metrics"], tmp_path / "checked", threshold=0.01, convergence=stats["convergence"])
     md = (tmp_path / "checked" / "summary.md").read_text(encoding="utf-8")
     assert "### Check runs that failed (2;" in md and "| refused | 2 |" in md and "| not run | 1 |" in md, md
     assert "**0 of 0 checked variants**" in md
@@ -303,8 +336,9 @@ def test_failed_check_run_keeps_main_row(tmp_path):
 
 
 def simulate(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([STICKSLIP, "simulate", "--fmu", str(require_fmu()), *map(str, args)],
-                          capture_output=True, text=True)
+    return subprocess.run(
+        [STICKSLIP, "simulate", "--fmu", str(require_fmu()), *map(str, args)], capture_output=True, text=True
+    )
 
 
 def test_simulate_check_convergence_warns_when_not_converged(tmp_path):
@@ -322,8 +356,9 @@ def test_simulate_check_convergence_warns_when_not_converged(tmp_path):
     for m, s in api.spreads.items():
         assert record["spreads"][m] == pytest.approx(s, rel=1e-9, abs=1e-15), m
 
-    p = simulate("--out", tmp_path / "tiny.csv", "--end", 0.3, "--check-convergence",
-                 "--convergence-threshold", "1e-12")
+    p = simulate(
+        "--out", tmp_path / "tiny.csv", "--end", 0.3, "--check-convergence", "--convergence-threshold", "1e-12"
+    )
     assert p.returncode == 0 and "WARNING: not converged: " in p.stderr and "max_eps" in p.stderr, p.stderr
 
     sets = [f"--set={n}={v}" for n, v in (CLEARANCES | friction(SENSITIVE_MU[1])).items()]

@@ -16,14 +16,35 @@ import pytest
 
 from helpers import Slave, input_vector
 
-REPRODUCER = {"h[1]": 50.0, "h[3]": 50.0, "Delta[1]": 4.62e-4, "Delta[3]": 3e-5,
-              "mu_k[1]": 0.19, "mu_s[1]": 0.21, "mu_k[3]": 0.19, "mu_s[3]": 0.21}
+REPRODUCER = {
+    "h[1]": 50.0,
+    "h[3]": 50.0,
+    "Delta[1]": 4.62e-4,
+    "Delta[3]": 3e-5,
+    "mu_k[1]": 0.19,
+    "mu_s[1]": 0.21,
+    "mu_k[3]": 0.19,
+    "mu_s[3]": 0.21,
+}
 
 
 @pytest.mark.parametrize("stepping", [{}, {"h_min": 2e-6, "h_max": 2e-6}], ids=["error-control", "fixed-2e-6"])
 def test_damped_drives_with_backlash_complete_the_reference_motion(stepping):
-    names = ["eps", "F_drive[1]", "F_drive[3]", "eps_joint[1]", "eps_joint[3]", "E_kin", "E_pot", "E_spring",
-             "W_drive", "Q_friction", "Q_damping", "n_stick[1]", "n_stick[3]"]
+    names = [
+        "eps",
+        "F_drive[1]",
+        "F_drive[3]",
+        "eps_joint[1]",
+        "eps_joint[3]",
+        "E_kin",
+        "E_pot",
+        "E_spring",
+        "W_drive",
+        "Q_friction",
+        "Q_damping",
+        "n_stick[1]",
+        "n_stick[3]",
+    ]
     with Slave("damped-clearance") as s:
         s.initialize(start_values={**REPRODUCER, **stepping})
         vrs = s.vars.vrs(names)

@@ -195,9 +195,21 @@ class Slice:
         cds = [offset for slot, offset in index if slot == CSSLOT_CODEDIRECTORY]
         assert len(cds) == 1, f"{self.arch}: {len(cds)} code directories"
         cd = blob[cds[0] :]
-        (magic, length, version, flags, hash_offset, ident_offset, n_special, n_code, code_limit, hash_size, hash_type, _, page_log2) = struct.unpack_from(
-            ">7I2I4B", cd, 0
-        )
+        (
+            magic,
+            length,
+            version,
+            flags,
+            hash_offset,
+            ident_offset,
+            n_special,
+            n_code,
+            code_limit,
+            hash_size,
+            hash_type,
+            _,
+            page_log2,
+        ) = struct.unpack_from(">7I2I4B", cd, 0)
         assert magic == CSMAGIC_CODEDIRECTORY, f"{self.arch}: code directory magic {magic:#x}"
         return {
             "dataoff": dataoff,
@@ -233,8 +245,12 @@ def in_ci() -> bool:
 def missing(reason: str):
     """Fail in CI, where scripts/test.sh builds darwin64; skip with the reason elsewhere."""
     if in_ci():
-        pytest.fail(f"CI=true and {reason}: scripts/test.sh builds darwin64 by default (STICKSLIP_DARWIN64=0 is for developers only)")
-    pytest.skip(f"{reason}: built by `bash scripts/build_fmu.sh` unless STICKSLIP_DARWIN64=0 or --platforms leaves darwin64 out")
+        pytest.fail(
+            f"CI=true and {reason}: scripts/test.sh builds darwin64 by default (STICKSLIP_DARWIN64=0 is for developers only)"
+        )
+    pytest.skip(
+        f"{reason}: built by `bash scripts/build_fmu.sh` unless STICKSLIP_DARWIN64=0 or --platforms leaves darwin64 out"
+    )
 
 
 @pytest.fixture(scope="module")

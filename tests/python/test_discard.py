@@ -62,7 +62,7 @@ def test_discard_from_tunable_parameters_then_continue(clean):
         s.set("mu_k[3]", 0.2)
         s.set("mu_s[3]", 0.2)
         after = s.run_reference(K, MORE)
-        assert after.tobytes() == clean[K + 1:].tobytes()
+        assert after.tobytes() == clean[K + 1 :].tobytes()
 
 
 FIXED_STEPS = {"h_min": 2e-6, "h_max": 2e-6}
@@ -118,7 +118,7 @@ def test_discard_then_restore_saved_state(clean):
         s.fmu.setFMUstate(saved)
         s.fmu.freeFMUstate(saved)
         assert s.get("mu_k[3]") == 0.2
-        assert s.run_reference(K, MORE).tobytes() == clean[K + 1:].tobytes()
+        assert s.run_reference(K, MORE).tobytes() == clean[K + 1 :].tobytes()
 
 
 def test_mu_k_above_mu_s_between_steps_is_a_discard():
@@ -150,4 +150,4 @@ def test_mu_k_above_mu_s_refused_and_correctable(clean):
         assert np.array_equal(s.outputs(), before)
         assert abs(s.fmu.getRealStatus(fmi2LastSuccessfulTime) - K * 1e-3) <= 1e-12
         s.set("mu_k[3]", 0.2)
-        assert s.run_reference(K, MORE).tobytes() == clean[K + 1:].tobytes()
+        assert s.run_reference(K, MORE).tobytes() == clean[K + 1 :].tobytes()

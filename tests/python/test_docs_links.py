@@ -39,7 +39,9 @@ ATX = re.compile(r"^ {0,3}(#{1,6})(?:[ \t]+(.*?))?(?:[ \t]+#+)?[ \t]*$")
 CODE_SPAN = re.compile(r"(`+)(.+?)(?<!`)\1(?!`)", re.S)
 # [text](target "title") and ![alt](target); the text may span lines and hold one
 # level of nested brackets (e.g. `q[1]`, already blanked as code).
-INLINE_LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\[\]]*\])*\]\(\s*(<[^>]*>|[^)\s]+)(?:\s+(?:\"[^\"]*\"|'[^']*'|\([^)]*\)))?\s*\)")
+INLINE_LINK = re.compile(
+    r"!?\[(?:[^\[\]]|\[[^\[\]]*\])*\]\(\s*(<[^>]*>|[^)\s]+)(?:\s+(?:\"[^\"]*\"|'[^']*'|\([^)]*\)))?\s*\)"
+)
 REF_DEF = re.compile(r"^ {0,3}\[[^\]]+\]:\s*(<[^>]*>|\S+)", re.M)
 HTML_ATTR_LINK = re.compile(r"<[a-zA-Z][^>]*?\b(?:src|href)\s*=\s*(\"[^\"]*\"|'[^']*')", re.S)
 HTML_ANCHOR = re.compile(r"<[a-zA-Z][^>]*?\b(?:id|name)\s*=\s*(\"[^\"]*\"|'[^']*')", re.S)
@@ -66,7 +68,12 @@ def split_code(text: str) -> tuple[str, list[str]]:
             out.append("")
             continue
         if fence is not None:
-            if m and m.group(1)[0] == fence[0] and len(m.group(1)) >= len(fence) and not line.strip()[len(m.group(1)):].strip():
+            if (
+                m
+                and m.group(1)[0] == fence[0]
+                and len(m.group(1)) >= len(fence)
+                and not line.strip()[len(m.group(1)) :].strip()
+            ):
                 fence = None
             out.append("")
             continue
@@ -163,7 +170,9 @@ def broken_links(files: list[Path], root: Path = ROOT) -> list[str]:
                 if dest not in cache:
                     cache[dest] = anchors_of(dest)
                 if unquote(anchor) not in cache[dest]:
-                    problems.append(f"{where}:{line}: `{target}`: no heading with anchor #{anchor} in {path_part or where}")
+                    problems.append(
+                        f"{where}:{line}: `{target}`: no heading with anchor #{anchor} in {path_part or where}"
+                    )
     return problems
 
 
@@ -194,9 +203,18 @@ def test_readme_links_every_docs_page():
 def test_slugs_follow_githubs_rule():
     assert slug(heading_text("Parameter studies: `stickslip sweep`")) == "parameter-studies-stickslip-sweep"
     assert slug(heading_text("3. Across the parameter space")) == "3-across-the-parameter-space"
-    assert slug(heading_text("Variables (reference model; i = joint number, 1…n)")) == "variables-reference-model-i--joint-number-1n"
-    assert slug(heading_text("Is a number converged? `--check-convergence`")) == "is-a-number-converged---check-convergence"
-    assert slug(heading_text("(b) Hunting: integral action and a link-side encoder")) == "b-hunting-integral-action-and-a-link-side-encoder"
+    assert (
+        slug(heading_text("Variables (reference model; i = joint number, 1…n)"))
+        == "variables-reference-model-i--joint-number-1n"
+    )
+    assert (
+        slug(heading_text("Is a number converged? `--check-convergence`"))
+        == "is-a-number-converged---check-convergence"
+    )
+    assert (
+        slug(heading_text("(b) Hunting: integral action and a link-side encoder"))
+        == "b-hunting-integral-action-and-a-link-side-encoder"
+    )
     assert slug(heading_text("**Bold** and [a link](x.md) and <em>html</em>")) == "bold-and-a-link-and-html"
     assert slug(heading_text("snake_case_name and ε, μ₃")) == "snake_case_name-and-ε-μ₃"
 
@@ -206,7 +224,8 @@ def test_checker_fails_on_broken_links_and_anchors(tmp_path):
     (tmp_path / "docs" / "figures").mkdir()
     (tmp_path / "docs" / "figures" / "a.png").write_bytes(b"")
     (tmp_path / "docs" / "page.md").write_text(
-        "# Page\n\n## Same\n\n## Same\n\n### Odd: `code` & *stuff*\n\n<a id=\"custom\"></a>\n", encoding="utf-8")
+        '# Page\n\n## Same\n\n## Same\n\n### Odd: `code` & *stuff*\n\n<a id="custom"></a>\n', encoding="utf-8"
+    )
     (tmp_path / "README.md").write_text(
         "# Top\n\n"
         "[ok](docs/page.md) [ok](docs/page.md#same) [ok](docs/page.md#same-1) [ok](docs/page.md#odd-code--stuff)\n"
@@ -217,9 +236,10 @@ def test_checker_fails_on_broken_links_and_anchors(tmp_path):
         "[broken anchor](docs/page.md#same-2)\n"
         "![broken image\nover two lines](docs/figures/missing.png)\n"
         "[broken self anchor](#nowhere)\n"
-        "<img src=\"docs/figures/gone.svg\">\n"
+        '<img src="docs/figures/gone.svg">\n'
         "[ref]: docs/absent.md\n",
-        encoding="utf-8")
+        encoding="utf-8",
+    )
     problems = broken_links(markdown_files(tmp_path), tmp_path)
     text = "\n".join(problems)
     assert len(problems) == 6, text

@@ -33,8 +33,18 @@ VARIANTS = {
     "slider 0.4 damped": {**DAMPED, "slider_a[3]": 0.4},
 }
 STIFF = {"k[1]": 1e8, "k[3]": 1e8, **DECREASING}
-WATCHED = ("eps", "n_stick[1]", "n_stick[3]", "t_stick[1]", "t_stick[3]", "stick[1]", "stick[3]",
-           "n_substeps", "n_rejected", "h_last")
+WATCHED = (
+    "eps",
+    "n_stick[1]",
+    "n_stick[3]",
+    "t_stick[1]",
+    "t_stick[3]",
+    "stick[1]",
+    "stick[3]",
+    "n_substeps",
+    "n_rejected",
+    "h_last",
+)
 
 _RUNS = {}
 
@@ -80,8 +90,10 @@ def test_default_error_control_gives_the_fixed_step_answer(name, interval):
     adaptive, fixed = run(parameters, interval), run({**parameters, **FIXED}, interval)
     assert_same_answer(adaptive, fixed, f"{name} at {interval:g} s", interval)
     steps, fixed_steps = adaptive["n_substeps"][-1], fixed["n_substeps"][-1]
-    print(f"{name} at {interval:g} s: {steps:.0f} sub-steps ({adaptive['n_rejected'][-1]:.0f} rejected) "
-          f"vs {fixed_steps:.0f} fixed")
+    print(
+        f"{name} at {interval:g} s: {steps:.0f} sub-steps ({adaptive['n_rejected'][-1]:.0f} rejected) "
+        f"vs {fixed_steps:.0f} fixed"
+    )
     assert fixed_steps >= RUN_TIME / 2e-6
     assert steps < 0.2 * fixed_steps, f"{name}: {steps} sub-steps"
 

@@ -45,12 +45,22 @@ ICON = "model.png"
 DRIVE_COLOURS = {"rigid": (0x78, 0x80, 0x88), "flexible": (0x1F, 0x6F, 0xC0), "motor": (0xE0, 0x6C, 0x10)}
 
 # The known chains: (kind, drive, friction contact) per joint, and URDF joint names.
-REFERENCE_CHAIN = [("revolute", "flexible", "bearings"), ("revolute", "rigid", "none"),
-                   ("prismatic", "flexible", "slider"), ("revolute", "rigid", "none")]
-MOTOR_CHAIN = [("revolute", "motor", "bearings"), ("revolute", "rigid", "none"),
-               ("prismatic", "motor", "slider"), ("revolute", "rigid", "none")]
-IIWA_CHAIN = [("revolute", "flexible" if i in (1, 2, 4) else "rigid", "bearings" if i in (1, 2, 4) else "none")
-              for i in range(1, 8)]
+REFERENCE_CHAIN = [
+    ("revolute", "flexible", "bearings"),
+    ("revolute", "rigid", "none"),
+    ("prismatic", "flexible", "slider"),
+    ("revolute", "rigid", "none"),
+]
+MOTOR_CHAIN = [
+    ("revolute", "motor", "bearings"),
+    ("revolute", "rigid", "none"),
+    ("prismatic", "motor", "slider"),
+    ("revolute", "rigid", "none"),
+]
+IIWA_CHAIN = [
+    ("revolute", "flexible" if i in (1, 2, 4) else "rigid", "bearings" if i in (1, 2, 4) else "none")
+    for i in range(1, 8)
+]
 
 FMUS = {
     "reference": (require_fmu, REFERENCE_CHAIN, None),
@@ -194,7 +204,7 @@ def test_fmpy_extract_gives_the_documentation_path(tmp_path):
 def test_page_is_well_formed_html5(which):
     _, files, md = archive(which)
     text = files[DOC].decode("utf-8")
-    assert text.startswith("<!DOCTYPE html>\n<html lang=\"en\">")
+    assert text.startswith('<!DOCTYPE html>\n<html lang="en">')
     p = page(which)
     assert p.doctype == "DOCTYPE html"
     assert not p.problems, p.problems
@@ -290,8 +300,16 @@ def test_motor_drives_are_documented():
 @fmus()
 def test_coupling_and_references(which):
     body = " ".join("".join(page(which).text).split())
-    for phrase in ("fmi2SetRealInputDerivatives", "fmi2Discard", "fmi2LastSuccessfulTime", "fmi2GetFMUstate",
-                   "fmi2SerializeFMUstate", "docs/motor_drives.md", "docs/control.md", "README.md"):
+    for phrase in (
+        "fmi2SetRealInputDerivatives",
+        "fmi2Discard",
+        "fmi2LastSuccessfulTime",
+        "fmi2GetFMUstate",
+        "fmi2SerializeFMUstate",
+        "docs/motor_drives.md",
+        "docs/control.md",
+        "README.md",
+    ):
         assert phrase in body, phrase
     named = set(re.findall(r"\bdocs/[\w.-]+\.md\b", body))
     assert len(named) >= 5
@@ -307,10 +325,10 @@ def _png_chunks(data: bytes):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, out = 8, []
     while pos < len(data):
-        (length,) = struct.unpack(">I", data[pos:pos + 4])
-        kind = data[pos + 4:pos + 8]
-        body = data[pos + 8:pos + 8 + length]
-        (crc,) = struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        kind = data[pos + 4 : pos + 8]
+        body = data[pos + 8 : pos + 8 + length]
+        (crc,) = struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])
         assert crc == zlib.crc32(kind + body), f"CRC of {kind!r}"
         out.append((kind, body))
         pos += 12 + length

@@ -30,12 +30,15 @@ def write(tree, files):
 
 
 def test_a_pair_that_imports_each_other_is_found(tmp_path):
-    write(tmp_path, {
-        "lib.rs": "pub mod a;\npub mod b;\n",
-        "a.rs": "use crate::b::Beta;\npub struct Alpha;\n",
-        "b/mod.rs": "mod inner;\npub use inner::Beta;\n",
-        "b/inner.rs": "pub struct Beta;\nfn f() -> usize { crate::a::helper() }\n",
-    })
+    write(
+        tmp_path,
+        {
+            "lib.rs": "pub mod a;\npub mod b;\n",
+            "a.rs": "use crate::b::Beta;\npub struct Alpha;\n",
+            "b/mod.rs": "mod inner;\npub use inner::Beta;\n",
+            "b/inner.rs": "pub struct Beta;\nfn f() -> usize { crate::a::helper() }\n",
+        },
+    )
     (tmp_path / "a.rs").write_text("use crate::b::Beta;\npub struct Alpha;\npub fn helper() -> usize { 1 }\n")
     r = check(tmp_path)
     assert r.returncode == 1, r.stdout
@@ -43,11 +46,14 @@ def test_a_pair_that_imports_each_other_is_found(tmp_path):
 
 
 def test_methods_added_to_another_files_type_count_as_a_dependency(tmp_path):
-    write(tmp_path, {
-        "lib.rs": "mod sim;\nmod steps;\n",
-        "sim.rs": "use crate::steps::Control;\npub struct Simulator { c: Control }\n",
-        "steps.rs": "pub enum Control { Fixed }\nimpl Simulator {\n    fn step(&self) {}\n}\n",
-    })
+    write(
+        tmp_path,
+        {
+            "lib.rs": "mod sim;\nmod steps;\n",
+            "sim.rs": "use crate::steps::Control;\npub struct Simulator { c: Control }\n",
+            "steps.rs": "pub enum Control { Fixed }\nimpl Simulator {\n    fn step(&self) {}\n}\n",
+        },
+    )
     r = check(tmp_path)
     assert r.returncode == 1, r.stdout
     assert "steps.rs -> " in r.stdout and "sim.rs -> " in r.stdout

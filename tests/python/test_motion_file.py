@@ -58,8 +58,11 @@ def cycloid_closed_form(q0, q1, t0, t1, t):
         return q1, 0.0, 0.0
     d, T = q1 - q0, t1 - t0
     tau = (t - t0) / T
-    return (q0 + d * (tau - math.sin(TAU * tau) / TAU), d * (1.0 - math.cos(TAU * tau)) / T,
-            d * TAU * math.sin(TAU * tau) / T**2)
+    return (
+        q0 + d * (tau - math.sin(TAU * tau) / TAU),
+        d * (1.0 - math.cos(TAU * tau)) / T,
+        d * TAU * math.sin(TAU * tau) / T**2,
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -82,14 +85,20 @@ def test_cycloid_matches_its_closed_form_at_chosen_times():
 
 
 def test_segments_follow_in_time_and_unlisted_joints_hold(tmp_path):
-    m = load_motion(write(tmp_path / "m.toml", """
+    m = load_motion(
+        write(
+            tmp_path / "m.toml",
+            """
 [[joint]]
 index = 2
 cycloid = [{ q0 = 0.0, q1 = 0.8, t0 = 0.0, t1 = 1.0 }, { q0 = 0.8, q1 = -0.2, t0 = 1.5, t1 = 2.5 }]
 [[joint]]
 index = 3
 hold = 0.2
-"""), 3)
+""",
+        ),
+        3,
+    )
     assert isinstance(m, CycloidMotion) and m.end_time == 2.5 and m.stop_time == 3.0
     for t in (0.0, 0.3, 1.0, 1.2, 1.5, 2.0, 2.5, 3.0):
         q, qd, qdd = m(t)
@@ -171,21 +180,39 @@ def test_csv_holds_outside_its_samples_and_takes_joint_names(tmp_path):
 
 def test_joint_names_from_the_fmu_descriptions(tmp_path):
     def var(name, i, extra):
-        return SimpleNamespace(name=name, causality="input",
-                               description=f"Prescribed position of joint {i} ({extra}), at the start of the step")
-    md = SimpleNamespace(modelVariables=[var("q_star[1]", 1, "`iiwa_joint_1`"),
-                                         var("q_star[2]", 2, "`iiwa_joint_2`, revolute, flexible drive"),
-                                         var("q_star[3]", 3, "revolute, rigid drive"),
-                                         var("qd_star[1]", 1, "`iiwa_joint_1`")])
-    md.modelVariables.append(SimpleNamespace(name="q_star[4]", causality="input",
-                                             description="Position of joint 4 `iiwa_joint_4` (revolute)"))
+        return SimpleNamespace(
+            name=name,
+            causality="input",
+            description=f"Prescribed position of joint {i} ({extra}), at the start of the step",
+        )
+
+    md = SimpleNamespace(
+        modelVariables=[
+            var("q_star[1]", 1, "`iiwa_joint_1`"),
+            var("q_star[2]", 2, "`iiwa_joint_2`, revolute, flexible drive"),
+            var("q_star[3]", 3, "revolute, rigid drive"),
+            var("qd_star[1]", 1, "`iiwa_joint_1`"),
+        ]
+    )
+    md.modelVariables.append(
+        SimpleNamespace(
+            name="q_star[4]", causality="input", description="Position of joint 4 `iiwa_joint_4` (revolute)"
+        )
+    )
     joints, names = fmu_joints(md)
     assert joints == 4 and names == {1: "iiwa_joint_1", 2: "iiwa_joint_2", 4: "iiwa_joint_4"}
-    m = load_motion(write(tmp_path / "m.toml", """
+    m = load_motion(
+        write(
+            tmp_path / "m.toml",
+            """
 [[joint]]
 name = "iiwa_joint_2"
 cycloid = { q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }
-"""), joints, names)
+""",
+        ),
+        joints,
+        names,
+    )
     assert m(0.5)[0] == [0.0, 0.5, 0.0, 0.0]
 
 
@@ -200,40 +227,70 @@ def test_reference_fmu_has_four_unnamed_joints():
 
 CYC = "cycloid = { q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }"
 REFUSED_TOML = {
-    "unknown joint index": (f"[[joint]]\nindex = 5\n{CYC}\n", "[[joint]] #1: unknown joint index 5: the FMU has 4 joints"),
+    "unknown joint index": (
+        f"[[joint]]\nindex = 5\n{CYC}\n",
+        "[[joint]] #1: unknown joint index 5: the FMU has 4 joints",
+    ),
     "index zero": (f"[[joint]]\nindex = 0\n{CYC}\n", "unknown joint index 0"),
     "index not a number": (f'[[joint]]\nindex = "2"\n{CYC}\n', "index = '2': must be a whole number 1..4"),
     "no index": (f"[[joint]]\n{CYC}\n", "[[joint]] #1: give its `index` (1..4, chain order)"),
-    "t1 equal t0": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 1.0, t1 = 1.0 }\n",
-                    "joint 1: cycloid: t1 = 1 s must be later than t0 = 1 s"),
-    "t1 before t0": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 1.0, t1 = 0.5 }\n",
-                     "t1 = 0.5 s must be later than t0 = 1 s"),
-    "t0 negative": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = -1.0, t1 = 0.5 }\n",
-                    "t0 = -1 s is before the simulation starts"),
-    "nan in a cycloid": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = nan, t0 = 0.0, t1 = 1.0 }\n",
-                         "joint 1: cycloid.q1 = nan: must be a finite number"),
+    "t1 equal t0": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 1.0, t1 = 1.0 }\n",
+        "joint 1: cycloid: t1 = 1 s must be later than t0 = 1 s",
+    ),
+    "t1 before t0": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 1.0, t1 = 0.5 }\n",
+        "t1 = 0.5 s must be later than t0 = 1 s",
+    ),
+    "t0 negative": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = -1.0, t1 = 0.5 }\n",
+        "t0 = -1 s is before the simulation starts",
+    ),
+    "nan in a cycloid": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = nan, t0 = 0.0, t1 = 1.0 }\n",
+        "joint 1: cycloid.q1 = nan: must be a finite number",
+    ),
     "inf hold": ("[[joint]]\nindex = 1\nhold = inf\n", "joint 1: hold = inf: must be a finite number"),
-    "cycloid key missing": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t1 = 1.0 }\n",
-                            "joint 1: cycloid: missing ['t0']"),
-    "cycloid key unknown": ("[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0, T = 2 }\n",
-                            "joint 1: cycloid: unknown key(s) ['T']"),
-    "joint twice": (f"[[joint]]\nindex = 2\n{CYC}\n[[joint]]\nindex = 2\nhold = 1.0\n",
-                    "joint 2 is given twice ([[joint]] #1 and #2)"),
+    "cycloid key missing": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t1 = 1.0 }\n",
+        "joint 1: cycloid: missing ['t0']",
+    ),
+    "cycloid key unknown": (
+        "[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0, T = 2 }\n",
+        "joint 1: cycloid: unknown key(s) ['T']",
+    ),
+    "joint twice": (
+        f"[[joint]]\nindex = 2\n{CYC}\n[[joint]]\nindex = 2\nhold = 1.0\n",
+        "joint 2 is given twice ([[joint]] #1 and #2)",
+    ),
     "cycloid and hold": (f"[[joint]]\nindex = 1\nhold = 0.3\n{CYC}\n", "joint 1: give either `cycloid` or `hold`"),
-    "segments overlap": ("[[joint]]\nindex = 1\ncycloid = [{ q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }, "
-                         "{ q0 = 1.0, q1 = 0.0, t0 = 0.9, t1 = 2.0 }]\n",
-                         "cycloid #2 starts at t0 = 0.9 s, before cycloid #1 ends (t1 = 1 s)"),
-    "segments jump": ("[[joint]]\nindex = 1\ncycloid = [{ q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }, "
-                      "{ q0 = 0.5, q1 = 0.0, t0 = 1.0, t1 = 2.0 }]\n",
-                      "cycloid #2 starts at q0 = 0.5 but cycloid #1 ends at q1 = 1.0; q* would jump"),
+    "segments overlap": (
+        "[[joint]]\nindex = 1\ncycloid = [{ q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }, "
+        "{ q0 = 1.0, q1 = 0.0, t0 = 0.9, t1 = 2.0 }]\n",
+        "cycloid #2 starts at t0 = 0.9 s, before cycloid #1 ends (t1 = 1 s)",
+    ),
+    "segments jump": (
+        "[[joint]]\nindex = 1\ncycloid = [{ q0 = 0.0, q1 = 1.0, t0 = 0.0, t1 = 1.0 }, "
+        "{ q0 = 0.5, q1 = 0.0, t0 = 1.0, t1 = 2.0 }]\n",
+        "cycloid #2 starts at q0 = 0.5 but cycloid #1 ends at q1 = 1.0; q* would jump",
+    ),
     "unknown joint key": (f"[[joint]]\nindex = 1\n{CYC}\nspeed = 2\n", "[[joint]] #1: unknown key(s) ['speed']"),
     "unknown top key": (f"duration = 2\n[[joint]]\nindex = 1\n{CYC}\n", "unknown key(s) ['duration']"),
-    "joints mismatch": (f"joints = 7\n[[joint]]\nindex = 1\n{CYC}\n", "written for joints = 7, but the FMU has 4 joints"),
+    "joints mismatch": (
+        f"joints = 7\n[[joint]]\nindex = 1\n{CYC}\n",
+        "written for joints = 7, but the FMU has 4 joints",
+    ),
     "name without names": (f'[[joint]]\nname = "shoulder"\n{CYC}\n', "name = 'shoulder': the FMU names no joints"),
     "no motion": ('description = "nothing"\n', "no motion: give [[joint]] entries"),
     "csv and joints": (f'csv = "m.csv"\n[[joint]]\nindex = 1\n{CYC}\n', "give either `csv` or [[joint]] entries"),
-    "boundary unknown": ('csv = "m.csv"\nboundary = "natural"\n', "boundary = 'natural': must be one of ['not-a-knot', 'rest']"),
-    "boundary without csv": (f'boundary = "rest"\n[[joint]]\nindex = 1\n{CYC}\n', "`boundary` applies to a `csv` motion only"),
+    "boundary unknown": (
+        'csv = "m.csv"\nboundary = "natural"\n',
+        "boundary = 'natural': must be one of ['not-a-knot', 'rest']",
+    ),
+    "boundary without csv": (
+        f'boundary = "rest"\n[[joint]]\nindex = 1\n{CYC}\n',
+        "`boundary` applies to a `csv` motion only",
+    ),
     "end not positive": (f"end = 0\n[[joint]]\nindex = 1\n{CYC}\n", "end = 0 s: must be positive"),
     "not TOML": ("[[joint]]\nindex = \n", "not valid TOML"),
     "csv file missing": ('csv = "nope.csv"\n', "csv 'nope.csv': No such file or directory"),
@@ -257,20 +314,23 @@ def test_motion_file_refused(tmp_path, case):
 
 HEAD4 = "t,q_star[1],q_star[2],q_star[3],q_star[4]\n"
 REFUSED_CSV = {
-    "non-monotone time": (HEAD4 + "0,0,0,0,0\n0.2,1,1,1,1\n0.1,2,2,2,2\n",
-                          "line 4: t = 0.1 s is not later than t = 0.2 s on line 3; the time column must increase"),
+    "non-monotone time": (
+        HEAD4 + "0,0,0,0,0\n0.2,1,1,1,1\n0.1,2,2,2,2\n",
+        "line 4: t = 0.1 s is not later than t = 0.2 s on line 3; the time column must increase",
+    ),
     "repeated time": (HEAD4 + "0,0,0,0,0\n0.2,1,1,1,1\n0.2,2,2,2,2\n", "line 4: t = 0.2 s is not later than t = 0.2 s"),
     "nan value": (HEAD4 + "0,0,0,0,0\n0.2,1,nan,1,1\n", "line 3: q_star[2] = nan: must be a finite number"),
     "nan time": (HEAD4 + "0,0,0,0,0\nNaN,1,1,1,1\n", "line 3: t = NaN: must be a finite number"),
     "empty value": (HEAD4 + "0,0,0,0,0\n0.2,1,,1,1\n", "line 3: not a number in"),
-    "too few columns": ("t,q_star[1],q_star[2],q_star[3]\n0,0,0,0\n1,1,1,1\n",
-                        "4 columns, expected 5 (t and one per joint of the FMU's 4)"),
+    "too few columns": (
+        "t,q_star[1],q_star[2],q_star[3]\n0,0,0,0\n1,1,1,1\n",
+        "4 columns, expected 5 (t and one per joint of the FMU's 4)",
+    ),
     "too many columns": (HEAD4.strip() + ",q_star[5]\n0,0,0,0,0,0\n1,1,1,1,1,1\n", "6 columns, expected 5"),
     "short row": (HEAD4 + "0,0,0,0,0\n1,1,1,1\n", "line 3: 4 values, expected 5 (t and 4 joints)"),
     "no header": ("0,0,0,0,0\n1,1,1,1,1\n", "the first column must be the time `t` (s); the header is"),
     "unknown column": ("t,q_star[1],q_star[2],q3,q_star[4]\n0,0,0,0,0\n1,1,1,1,1\n", "unknown column 'q3'"),
-    "column twice": ("t,q_star[1],q_star[2],q_star[2],q_star[4]\n0,0,0,0,0\n1,1,1,1,1\n",
-                     "joint 2 has two columns"),
+    "column twice": ("t,q_star[1],q_star[2],q_star[2],q_star[4]\n0,0,0,0,0\n1,1,1,1,1\n", "joint 2 has two columns"),
     "one sample": (HEAD4 + "0,0,0,0,0\n", "1 sample(s); a motion needs at least 2"),
     "empty": ("", "empty; expected a header row t, q_star[1], q_star[2], q_star[3], q_star[4]"),
 }
@@ -333,8 +393,9 @@ def _read(path: Path):
 
 def test_simulate_with_the_reference_motion_file_is_bit_identical_to_the_default(fmu, default_run, tmp_path):
     out = tmp_path / "via_file.csv"
-    assert cli.main(["simulate", "--fmu", str(fmu), "--motion", str(EXAMPLES / "reference.toml"),
-                     "--out", str(out)]) == 0
+    assert (
+        cli.main(["simulate", "--fmu", str(fmu), "--motion", str(EXAMPLES / "reference.toml"), "--out", str(out)]) == 0
+    )
     assert out.read_bytes() == default_run.read_bytes()
     header, data = _read(out)
     assert len(data) == 2001 and data[-1, 0] == 2.0
@@ -342,8 +403,12 @@ def test_simulate_with_the_reference_motion_file_is_bit_identical_to_the_default
 
 def test_simulate_with_the_sampled_reference_agrees_with_the_default(fmu, default_run, tmp_path):
     out = tmp_path / "sampled.csv"
-    assert cli.main(["simulate", "--fmu", str(fmu), "--motion", str(EXAMPLES / "reference_sampled.toml"),
-                     "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            ["simulate", "--fmu", str(fmu), "--motion", str(EXAMPLES / "reference_sampled.toml"), "--out", str(out)]
+        )
+        == 0
+    )
     (h0, a), (h1, b) = _read(default_run), _read(out)
     assert h0 == h1 and a.shape == b.shape
     col = {n: j for j, n in enumerate(h0)}
@@ -374,8 +439,10 @@ def test_simulate_api_takes_a_motion_path(fmu):
 def test_sweep_spec_takes_a_motion_file_identified_with_its_csv(fmu, tmp_path):
     from stickslip.sweep import _motion
 
-    spec_path = write(tmp_path / "spec.toml", f'stop_time = 0.1\ncommunication_step = 1e-3\nfmu = "{fmu}"\n'
-                                              '[grid]\n"mu_k[3]" = [0.1, 0.2]\n')
+    spec_path = write(
+        tmp_path / "spec.toml",
+        f'stop_time = 0.1\ncommunication_step = 1e-3\nfmu = "{fmu}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n',
+    )
     motion = tmp_path / "m" / "sampled.toml"
     shutil.copytree(EXAMPLES, motion.parent)
     (motion.parent / "reference_sampled.toml").rename(motion)
@@ -397,13 +464,15 @@ def test_sweep_spec_takes_a_motion_file_identified_with_its_csv(fmu, tmp_path):
 def test_sweep_with_the_reference_motion_file_gives_the_reference_rows(fmu, tmp_path):
     import pandas as pd
 
-    spec_path = write(tmp_path / "spec.toml", f'stop_time = 0.2\ncommunication_step = 1e-3\nmotion = "reference"\n'
-                                              f'fmu = "{fmu}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n')
+    spec_path = write(
+        tmp_path / "spec.toml",
+        f'stop_time = 0.2\ncommunication_step = 1e-3\nmotion = "reference"\n'
+        f'fmu = "{fmu}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n',
+    )
     args = ["sweep", str(spec_path), "--workers", "1"]
     assert cli.main(args + ["--out", str(tmp_path / "a")]) == 0
     assert cli.main(args + ["--out", str(tmp_path / "b"), "--motion", str(EXAMPLES / "reference.toml")]) == 0
-    a, b = (pd.read_parquet(tmp_path / d / "results.parquet").sort_values("run").reset_index(drop=True)
-            for d in "ab")
+    a, b = (pd.read_parquet(tmp_path / d / "results.parquet").sort_values("run").reset_index(drop=True) for d in "ab")
     same = [c for c in a.columns if c not in ("wall_s", "cpu_s", "worker", "finished")]
     assert (a["status"] == "ok").all()
     pd.testing.assert_frame_equal(a[same], b[same])

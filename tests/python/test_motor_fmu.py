@@ -57,8 +57,20 @@ from fmpy.validation import validate_fmu
 
 from helpers import ROOT, Slave, fmu_path, input_vector, max_relative_deviation, read_csv
 from motor_fmus import (
-    BALANCE, BUILD_SECONDS, GEAR_RATIO, MOTOR_COULOMB, MOTOR_JOINTS, MOTOR_VISCOUS, RIGID_JOINTS, ROTOR_INERTIA,
-    balance, motor_slave, require_motor_fmu, run_motor, set_motor_inputs)
+    BALANCE,
+    BUILD_SECONDS,
+    GEAR_RATIO,
+    MOTOR_COULOMB,
+    MOTOR_JOINTS,
+    MOTOR_VISCOUS,
+    RIGID_JOINTS,
+    ROTOR_INERTIA,
+    balance,
+    motor_slave,
+    require_motor_fmu,
+    run_motor,
+    set_motor_inputs,
+)
 
 INTERVAL = 1e-3
 G = 9.81
@@ -133,8 +145,12 @@ EXCLUSIVE_MIN = {"gear_ratio": "(0, 1e6]", "J_m": "(0, 1000]"}
 
 
 def _check_declaration(v, ty, causality, variability, unit, lo, hi, start):
-    assert (v.type, v.causality, v.variability) == (ty, causality, variability), (v.name, v.type, v.causality,
-                                                                                  v.variability)
+    assert (v.type, v.causality, v.variability) == (ty, causality, variability), (
+        v.name,
+        v.type,
+        v.causality,
+        v.variability,
+    )
     assert v.unit == unit, (v.name, v.unit, unit)
     assert (None if v.min is None else float(v.min)) == lo, (v.name, v.min)
     assert (None if v.max is None else float(v.max)) == hi, (v.name, v.max)
@@ -249,8 +265,10 @@ def test_torque_step_and_holding_torque(fmu):
         assert np.all(np.isfinite(rows)), [n for n, ok in zip(s.output_names(), np.isfinite(rows).all(0)) if not ok]
         w = _column(s, rows, "W_drive")
         bal = _balance_rows(s, rows)
-        assert np.max(np.abs(bal - b0)) <= BALANCE_TOLERANCE * np.max(np.abs(w)), (np.max(np.abs(bal - b0)),
-                                                                                     np.max(np.abs(w)))
+        assert np.max(np.abs(bal - b0)) <= BALANCE_TOLERANCE * np.max(np.abs(w)), (
+            np.max(np.abs(bal - b0)),
+            np.max(np.abs(w)),
+        )
         names = s.output_names()
         th3 = first[names.index("theta_m[3]")]
         assert np.all(_column(s, rows, "stick_m[3]") == 1.0)
@@ -333,8 +351,20 @@ def test_energy_account_with_gear_damping_and_clearance(fmu):
 
 RAMP = (0.01, 10.0, 0.0)  # tau_m[1] = 0.01 + 10 t N.m: past tau_c at 2 ms
 PARABOLA = (0.0, 0.0, 200.0)  # tau_m[1] = 100 t^2 N.m
-COMPARED = ["q[1]", "qd[1]", "theta_m[1]", "omega_m[1]", "tau_load[1]", "F_drive[1]", "tau_f_m[1]", "W_drive",
-            "Q_motor", "E_rotor", "E_kin", "Q_friction"]
+COMPARED = [
+    "q[1]",
+    "qd[1]",
+    "theta_m[1]",
+    "omega_m[1]",
+    "tau_load[1]",
+    "F_drive[1]",
+    "tau_f_m[1]",
+    "W_drive",
+    "Q_motor",
+    "E_rotor",
+    "E_kin",
+    "Q_friction",
+]
 
 
 def _torque_run(fmu, poly, h, end=0.1, mode="derivatives", every=1, extra=None):
@@ -458,8 +488,15 @@ def test_unloaded_start_from_q_star(fmu):
 def test_given_rotor_start_values(fmu):
     """use_start_values = true and static_start = false: the rotors start at theta_m_start,
     omega_m_start (given), the joints at q_start, qd_start."""
-    start = {"use_start_values": True, "q_start[1]": 0.1, "q_start[3]": 0.9, "theta_m_start[1]": 10.002,
-             "omega_m_start[1]": 3.0, "theta_m_start[3]": 0.9 * GEAR_RATIO[3], "omega_m_start[3]": -2.0}
+    start = {
+        "use_start_values": True,
+        "q_start[1]": 0.1,
+        "q_start[3]": 0.9,
+        "theta_m_start[1]": 10.002,
+        "omega_m_start[1]": 3.0,
+        "theta_m_start[3]": 0.9 * GEAR_RATIO[3],
+        "omega_m_start[3]": -2.0,
+    }
     with _initialized(fmu, "given", start_values=start) as s:
         assert s.get("theta_m[1]") == 10.002 and s.get("omega_m[1]") == 3.0
         assert s.get("theta_m[3]") == 0.9 * GEAR_RATIO[3] and s.get("omega_m[3]") == -2.0
@@ -494,8 +531,10 @@ def test_static_start_holds_the_links(fmu):
         s.free()
 
 
-@pytest.mark.parametrize("name, value", [("gear_ratio[1]", 50.0), ("gear_ratio[3]", 1000.0),
-                                         ("theta_m_start[1]", 1.0), ("static_start", True)])
+@pytest.mark.parametrize(
+    "name, value",
+    [("gear_ratio[1]", 50.0), ("gear_ratio[3]", 1000.0), ("theta_m_start[1]", 1.0), ("static_start", True)],
+)
 def test_fixed_motor_variables_are_refused_after_initialization(fmu, name, value):
     """A fixed motor variable set after fmi2ExitInitializationMode is refused with fmi2Error;
     the logged message names it and says it is fixed; its value is unchanged, and the
@@ -561,8 +600,19 @@ def test_stickslip_simulate_runs_the_motor_fmu_with_constant_torques(fmu, tmp_pa
     is held by its friction, and the energy account of the CSV closes (1e-6 of max
     |W_drive|)."""
     out = tmp_path / "motor.csv"
-    rc, stdout, err = _stickslip("simulate", "--fmu", fmu, "--out", str(out), "--end", "0.2",
-                                 "--set", "static_start=true", "--set", "tau_m[1]=0.5")
+    rc, stdout, err = _stickslip(
+        "simulate",
+        "--fmu",
+        fmu,
+        "--out",
+        str(out),
+        "--end",
+        "0.2",
+        "--set",
+        "static_start=true",
+        "--set",
+        "tau_m[1]=0.5",
+    )
     assert rc == 0, err
     assert "Traceback" not in err
     note = [line for line in stdout.splitlines() if "motor" in line]
@@ -599,18 +649,21 @@ def test_stickslip_refuses_a_motion_that_moves_a_motor_joint_and_the_study(fmu, 
     and cycloids on the rigid joints are run. `stickslip study` (whose cases prescribe the
     drive positions q*) refuses the motor FMU with one line."""
     moving = tmp_path / "moving.toml"
-    moving.write_text('end = 0.02\n[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 0.5, t0 = 0.0, t1 = 0.5 }\n')
+    moving.write_text("end = 0.02\n[[joint]]\nindex = 1\ncycloid = { q0 = 0.0, q1 = 0.5, t0 = 0.0, t1 = 0.5 }\n")
     rc, _, err = _stickslip("simulate", "--fmu", fmu, "--motion", str(moving), "--out", str(tmp_path / "m.csv"))
     _one_line_error(rc, err, "stickslip simulate", "joint 1", "motor", "tau_m[1]")
     holding = tmp_path / "holding.toml"
-    holding.write_text('end = 0.02\n[[joint]]\nindex = 1\nhold = 0.2\n[[joint]]\nindex = 2\n'
-                       'cycloid = { q0 = 0.0, q1 = 0.2, t0 = 0.0, t1 = 0.5 }\n')
+    holding.write_text(
+        "end = 0.02\n[[joint]]\nindex = 1\nhold = 0.2\n[[joint]]\nindex = 2\n"
+        "cycloid = { q0 = 0.0, q1 = 0.2, t0 = 0.0, t1 = 0.5 }\n"
+    )
     rc, stdout, err = _stickslip("simulate", "--fmu", fmu, "--motion", str(holding), "--out", str(tmp_path / "h.csv"))
     assert rc == 0 and "Traceback" not in err, err
     data = read_csv(tmp_path / "h.csv")
     assert data["q[1]"][0] == 0.2 and data["theta_m[1]"][0] == pytest.approx(20.0) and data["q[2]"][-1] > 0.0
-    rc, _, err = _stickslip("study", "--fmu", fmu, "--out", str(tmp_path / "study"), "--end", "0.01",
-                            "--cases", "friction")
+    rc, _, err = _stickslip(
+        "study", "--fmu", fmu, "--out", str(tmp_path / "study"), "--end", "0.01", "--cases", "friction"
+    )
     _one_line_error(rc, err, "stickslip study", "motor", "joints 1, 3")
 
 

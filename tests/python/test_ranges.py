@@ -127,7 +127,9 @@ def _params(bound):
     cases = []
     for key, ranged in RANGED_BY_FMU.items():
         prefix = f"{key}:" if key else ""
-        cases += [pytest.param((FMUS[key], *r), id=prefix + r[0]) for r in ranged if r[1 if bound == "min" else 2] is not None]
+        cases += [
+            pytest.param((FMUS[key], *r), id=prefix + r[0]) for r in ranged if r[1 if bound == "min" else 2] is not None
+        ]
     if URDF_BUILD_ERROR:
         cases.append(pytest.param("build:iiwa", id="iiwa:build"))
     if MOTOR_BUILD_ERROR:
@@ -315,8 +317,13 @@ def test_motor_fmu_declares_the_ranges_of_its_motor_variables():
     reference = {r[0]: r[1:3] for r in RANGED_BY_FMU[""]}
     differ = {n: (reference[n], motor[n]) for n in reference if motor.get(n) != reference[n]}
     assert not differ, differ
-    expected = {"tau_m": (-1e6, 1e6), "gear_ratio": (0.0, 1e6), "J_m": (0.0, 1e3), "b_m": (0.0, 1e6),
-                "tau_c": (0.0, 1e6)}
+    expected = {
+        "tau_m": (-1e6, 1e6),
+        "gear_ratio": (0.0, 1e6),
+        "J_m": (0.0, 1e3),
+        "b_m": (0.0, 1e6),
+        "tau_c": (0.0, 1e6),
+    }
     got = {f"{b}[{i}]": motor.get(f"{b}[{i}]") for b in expected for i in MOTOR_JOINTS}
     assert got == {f"{b}[{i}]": r for b, r in expected.items() for i in MOTOR_JOINTS}, got
     assert {r[0] for r in RANGED_BY_FMU["motor"]} == set(got)
@@ -327,8 +334,9 @@ def _derivative_status(s, names, orders, values):
     n = len(names)
     vrs = (fmi2ValueReference * n)(*s.vars.vrs(names))
     try:
-        return s.fmu.fmi2SetRealInputDerivatives(s.fmu.component, vrs, n, (fmi2Integer * n)(*orders),
-                                                 (fmi2Real * n)(*values))
+        return s.fmu.fmi2SetRealInputDerivatives(
+            s.fmu.component, vrs, n, (fmi2Integer * n)(*orders), (fmi2Real * n)(*values)
+        )
     except FMICallException as e:
         return e.status
 
@@ -396,12 +404,18 @@ def _settable_motor_variables():
     if not MOTOR_FMUS:
         return []
     reference = {v.name for v in model_description(str(fmu_path())).modelVariables}
-    return [(v.name, v.variability == "fixed") for v in model_description(MOTOR_FMUS["motor"]).modelVariables
-            if v.type == "Real" and v.causality in ("parameter", "input") and v.name not in reference]
+    return [
+        (v.name, v.variability == "fixed")
+        for v in model_description(MOTOR_FMUS["motor"]).modelVariables
+        if v.type == "Real" and v.causality in ("parameter", "input") and v.name not in reference
+    ]
 
 
-@pytest.mark.parametrize("var", [pytest.param(v, id=f"motor:{v[0]}") for v in _settable_motor_variables()]
-                         or [pytest.param(None, marks=pytest.mark.skip(reason="no motor FMU"))])
+@pytest.mark.parametrize(
+    "var",
+    [pytest.param(v, id=f"motor:{v[0]}") for v in _settable_motor_variables()]
+    or [pytest.param(None, marks=pytest.mark.skip(reason="no motor FMU"))],
+)
 def test_motor_variables_refuse_nan_and_infinity(var):
     """NaN, +inf and -inf set to a motor variable (tau_m, gear_ratio, J_m, b_m, tau_c,
     theta_m_start, omega_m_start) are refused with fmi2Error and an fmi2Error message naming

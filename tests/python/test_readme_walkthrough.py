@@ -48,7 +48,7 @@ def walkthrough_block(text: str) -> tuple[int, str]:
     start = next((i for i in range(heading + 1, len(lines)) if lines[i].strip() == "```python"), None)
     assert start is not None, f"README.md: no ```python block after line {heading + 1} ({lines[heading]})"
     end = next(i for i in range(start + 1, len(lines)) if lines[i].strip().startswith("```"))
-    return start + 2, "\n".join(lines[start + 1:end]) + "\n"
+    return start + 2, "\n".join(lines[start + 1 : end]) + "\n"
 
 
 def quoted_output(text: str) -> str:
@@ -62,8 +62,10 @@ def quoted_output(text: str) -> str:
 def walkthrough(tmp_path_factory):
     fmu = fmu_path()
     if not fmu.is_file():
-        pytest.fail(f"the FMU {fmu} is not built: run `bash scripts/build_fmu.sh` (scripts/test.sh builds "
-                    "it before pytest) or set STICKSLIP_FMU")
+        pytest.fail(
+            f"the FMU {fmu} is not built: run `bash scripts/build_fmu.sh` (scripts/test.sh builds "
+            "it before pytest) or set STICKSLIP_FMU"
+        )
     text = README.read_text(encoding="utf-8")
     line, code = walkthrough_block(text)
     assert str(FMU_IN_README) in code, f"the README's fmpy example no longer names {FMU_IN_README}"
@@ -117,7 +119,8 @@ def test_it_prints_what_the_readme_says(walkthrough):
     printed = " ".join(walkthrough["stdout"].split())
     assert printed == quoted_output(walkthrough["text"]), (
         f"the README's fmpy example printed\n  {printed}\nbut the README says it prints\n  "
-        f"{quoted_output(walkthrough['text'])}")
+        f"{quoted_output(walkthrough['text'])}"
+    )
 
 
 def test_its_numbers_are_those_of_stickslip_simulate(walkthrough):

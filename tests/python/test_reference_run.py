@@ -39,7 +39,7 @@ from helpers import (
     variables,
 )
 
-BINARY_INTERVAL = 2.0 ** -10
+BINARY_INTERVAL = 2.0**-10
 
 
 def _outputs(names):

@@ -19,8 +19,12 @@ from helpers import require_fmu
 
 def test_resident_memory_stays_flat():
     script = Path(__file__).with_name("soak.py")
-    done = subprocess.run([sys.executable, str(script), "--fmu", str(require_fmu()), "--cycles", "1500",
-                           "--seconds", "60"], capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [sys.executable, str(script), "--fmu", str(require_fmu()), "--cycles", "1500", "--seconds", "60"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr
     print(done.stdout.splitlines()[-1])
     r = json.loads(done.stdout.splitlines()[0])

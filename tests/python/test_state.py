@@ -137,7 +137,7 @@ def test_deserialize_into_second_instance(snapshot, initialized):
     """A second instance, either just instantiated or initialized and stepped to another
     time (0.1 s), takes the serialized state and continues exactly like A."""
     _, _, data, a, kind = snapshot
-    with (kind.initialized("second") if initialized else kind.instantiated("second")) as other:
+    with kind.initialized("second") if initialized else kind.instantiated("second") as other:
         if initialized:
             kind.run(other, 0, 100)
         st = other.fmu.deSerializeFMUstate(data)
@@ -230,8 +230,18 @@ def test_deserialize_in_another_process(snapshot):
     state_file.write_bytes(data)
     env = dict(os.environ)
     subprocess.run(
-        [sys.executable, "-c", CHILD, str(Path(__file__).parent), str(state_file), str(out_file), str(K0), str(N),
-         name, kind.path or ""],
+        [
+            sys.executable,
+            "-c",
+            CHILD,
+            str(Path(__file__).parent),
+            str(state_file),
+            str(out_file),
+            str(K0),
+            str(N),
+            name,
+            kind.path or "",
+        ],
         check=True,
         env=env,
         timeout=120,

@@ -39,9 +39,11 @@ def _run(name, interval, end=study.RUN_TIME, step_h=study.DEFAULT_STEP_H):
     res = study.run_case(case, end, interval, require_fmu())
     for v, m in zip(case.variants, res["measures"]):
         j1, j3 = m["joint1"], m["joint3"]
-        print(f"{name} {v.label}: max eps {m['max_eps']:.4e} m, final {m['final_eps']:.4e} m, "
-              f"n_stick {j1['n_stick']}, {j3['n_stick']}, t_stick {j1['t_stick']:.4f}, {j3['t_stick']:.4f} s, "
-              f"max N {j1['max_N_normal']:.1f}, {j3['max_N_normal']:.1f} N")
+        print(
+            f"{name} {v.label}: max eps {m['max_eps']:.4e} m, final {m['final_eps']:.4e} m, "
+            f"n_stick {j1['n_stick']}, {j3['n_stick']}, t_stick {j1['t_stick']:.4f}, {j3['t_stick']:.4f} s, "
+            f"max N {j1['max_N_normal']:.1f}, {j3['max_N_normal']:.1f} N"
+        )
     for c in res["claims"]:
         print(("holds: " if c.holds else "FAILS: ") + c.text)
     return case, res
@@ -54,8 +56,10 @@ def resolution(request):
 
 @pytest.mark.parametrize(
     "h, end, interval",
-    [pytest.param(4e-6, 0.5, CI["interval"], id="ci"),
-     pytest.param(study.DEFAULT_STEP_H, study.RUN_TIME, FULL["interval"], id="full", marks=pytest.mark.slow)],
+    [
+        pytest.param(4e-6, 0.5, CI["interval"], id="ci"),
+        pytest.param(study.DEFAULT_STEP_H, study.RUN_TIME, FULL["interval"], id="full", marks=pytest.mark.slow),
+    ],
 )
 def test_step_half_step_reproduces_converged_run(h, end, interval):
     """Fig. 10: halving the sub-step from h to h/2 changes max |eps| by less than 1 % and each
@@ -150,9 +154,26 @@ def test_command_writes_csv_figure_and_summary(tmp_path):
     columns), friction.png and the summary (JSON and markdown), with a progress line per case."""
     out = tmp_path / "study"
     p = subprocess.run(
-        [shutil.which("stickslip"), "study", "--out", str(out), "--cases", "friction",
-         "--fixed-step", "5e-5", "--interval", "1e-3", "--end", "0.3", "--fmu", str(require_fmu())],
-        capture_output=True, text=True, check=True)
+        [
+            shutil.which("stickslip"),
+            "study",
+            "--out",
+            str(out),
+            "--cases",
+            "friction",
+            "--fixed-step",
+            "5e-5",
+            "--interval",
+            "1e-3",
+            "--end",
+            "0.3",
+            "--fmu",
+            str(require_fmu()),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert "[1/1] friction" in p.stdout
     header = (out / "friction.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and "mu3=0.1:eps" in header and "mu3=0.2:n_stick[3]" in header

@@ -31,8 +31,6 @@ from sweep_cluster import cluster, loopback_cluster, sweep, sweep_process, write
 JOINTS = (1, 2, 3, 4)
 
 
-
-
 def k3_grid(n: int) -> str:
     """A SPEC line sweeping k[3] over n values 1e6, 1e6 + 1e3, …"""
     return '"k[3]" = [' + ", ".join(f"{1e6 + 1e3 * j:.0f}" for j in range(n)) + "]\n"
@@ -65,8 +63,12 @@ def direct_metrics(parameters: dict, stop_time: float, step: float = 1e-3) -> di
             s.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=step)
             eps.append(s.get("eps"))
             normal.append([s.get(f"N_normal[{i}]") for i in JOINTS])
-        out = {"max_eps": max(eps), "final_eps": eps[-1], "Q_friction": s.get("Q_friction"),
-               "W_drive": s.get("W_drive")}
+        out = {
+            "max_eps": max(eps),
+            "final_eps": eps[-1],
+            "Q_friction": s.get("Q_friction"),
+            "W_drive": s.get("W_drive"),
+        }
         for j, i in enumerate(JOINTS):
             out[f"n_stick[{i}]"] = s.get(f"n_stick[{i}]")
             out[f"t_stick[{i}]"] = s.get(f"t_stick[{i}]")
@@ -122,13 +124,28 @@ def test_seeded_samples_reproducible_across_runs_and_cluster_sizes(cluster, tmp_
     same draws and bit-identical metrics; --samples 3 gives the first 3 of the 6 draws."""
     spec = write_spec(tmp_path / "mc.toml", SAMPLE.format(n=6), stop_time=0.02)
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
-    for args in ((a, "--scheduler", cluster.address), (b, "--workers", "1"),
-                 (c, "--scheduler", cluster.address, "--samples", "3")):
+    for args in (
+        (a, "--scheduler", cluster.address),
+        (b, "--workers", "1"),
+        (c, "--scheduler", cluster.address, "--samples", "3"),
+    ):
         p = sweep(spec, "--out", *args)
         assert p.returncode == 0, p.stdout + p.stderr
     ra, rb, rc = (pd.read_parquet(d / "results.parquet") for d in (a, b, c))
-    columns = ["run", "k[1]", "slider_a[3]", "v_s[3]", "status", "max_eps", "final_eps", "n_stick[3]",
-               "t_stick[3]", "max_N_normal[3]", "Q_friction", "W_drive"]
+    columns = [
+        "run",
+        "k[1]",
+        "slider_a[3]",
+        "v_s[3]",
+        "status",
+        "max_eps",
+        "final_eps",
+        "n_stick[3]",
+        "t_stick[3]",
+        "max_N_normal[3]",
+        "Q_friction",
+        "W_drive",
+    ]
     pd.testing.assert_frame_equal(ra[columns], rb[columns], check_exact=True)
     pd.testing.assert_frame_equal(rc[columns], ra[columns].head(3), check_exact=True)
     assert (ra["status"] == "ok").all()
@@ -204,8 +221,18 @@ def test_metrics_names_follow_the_fmu():
     from stickslip.variant import metric_names
 
     names = metric_names(["eps", "n_stick[1]", "n_stick[3]", "W_drive"])
-    assert names == ["max_eps", "final_eps", "n_stick[1]", "n_stick[3]", "t_stick[1]", "t_stick[3]",
-                     "max_N_normal[1]", "max_N_normal[3]", "Q_friction", "W_drive"]
+    assert names == [
+        "max_eps",
+        "final_eps",
+        "n_stick[1]",
+        "n_stick[3]",
+        "t_stick[1]",
+        "t_stick[3]",
+        "max_N_normal[1]",
+        "max_N_normal[3]",
+        "Q_friction",
+        "W_drive",
+    ]
     assert FLEXIBLE == (1, 3)
 
 
@@ -216,8 +243,9 @@ def test_motion_csv_equals_reference_motion(tmp_path):
 
     t = np.arange(0, 101) * 1e-3
     names = input_names(4)
-    rows = [[x for x in (k * 1e-3,)] + [float(v) for part in reference_inputs(k * 1e-3) for v in part]
-            for k in range(101)]
+    rows = [
+        [x for x in (k * 1e-3,)] + [float(v) for part in reference_inputs(k * 1e-3) for v in part] for k in range(101)
+    ]
     path = tmp_path / "motion.csv"
     path.write_text(",".join(["time"] + names) + "\n" + "\n".join(",".join(repr(x) for x in r) for r in rows))
     m = TableMotion.from_csv(path, 4)
@@ -255,11 +283,16 @@ def test_progress_bar_on_a_terminal_lines_otherwise(cluster, tmp_path):
 
     from sweep_cluster import STICKSLIP
 
-    spec = write_spec(tmp_path / "bar.toml", '[grid]\n"mu_k[3]" = [0.1, 0.2, 0.25]\n"slider_a[3]" = [0.2, 0.4]\n',
-                      stop_time=0.02)
+    spec = write_spec(
+        tmp_path / "bar.toml", '[grid]\n"mu_k[3]" = [0.1, 0.2, 0.25]\n"slider_a[3]" = [0.2, 0.4]\n', stop_time=0.02
+    )
     master, slave = pty.openpty()
-    p = subprocess.Popen([STICKSLIP, "sweep", str(spec), "--out", str(tmp_path / "tty"), "--scheduler",
-                          cluster.address], stdout=slave, stderr=slave, close_fds=True)
+    p = subprocess.Popen(
+        [STICKSLIP, "sweep", str(spec), "--out", str(tmp_path / "tty"), "--scheduler", cluster.address],
+        stdout=slave,
+        stderr=slave,
+        close_fds=True,
+    )
     os.close(slave)
     out = b""
     while True:

@@ -24,36 +24,59 @@ MALFORMED = {
     "boolean fixed parameter": (HEAD + '[grid]\n"use_start_values" = [1]\n', "`use_start_values` is a fixed parameter"),
     "empty grid": (HEAD + "[grid]\n", "[grid] is empty"),
     "empty value list": (HEAD + '[grid]\n"mu_k[3]" = []\n', "grid `mu_k[3]` = []: must be a non-empty list"),
-    "value not a number": (HEAD + '[grid]\n"mu_k[3]" = [0.1, "high"]\n', "grid `mu_k[3]`: 'high' is not a finite number"),
+    "value not a number": (
+        HEAD + '[grid]\n"mu_k[3]" = [0.1, "high"]\n',
+        "grid `mu_k[3]`: 'high' is not a finite number",
+    ),
     "value twice": (HEAD + '[grid]\n"mu_k[3]" = [0.1, 0.1]\n', "grid `mu_k[3]` lists a value twice"),
     "out of the FMU's range": (HEAD + '[grid]\n"k[1]" = [-1.0]\n', "`k[1]` = -1 is outside the FMU's range"),
-    "uniform reversed": (HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { uniform = [2e6, 5e5] }\n',
-                         "sample `k[1]`: uniform = [2000000.0, 500000.0] needs low < high"),
-    "normal sd zero": (HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { normal = [1e6, 0] }\n',
-                       "needs a standard deviation > 0"),
-    "loguniform from zero": (HEAD + '[sample]\nn = 3\nseed = 1\n"v_s[3]" = { loguniform = [0, 1] }\n',
-                             "needs 0 < low < high"),
-    "one number": (HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { uniform = [5e5] }\n',
-                   "must be two finite numbers [low, high]"),
-    "unknown distribution": (HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { triangular = [1, 2] }\n',
-                             "sample `k[1]` = {'triangular': [1, 2]}: must be { uniform"),
+    "uniform reversed": (
+        HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { uniform = [2e6, 5e5] }\n',
+        "sample `k[1]`: uniform = [2000000.0, 500000.0] needs low < high",
+    ),
+    "normal sd zero": (
+        HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { normal = [1e6, 0] }\n',
+        "needs a standard deviation > 0",
+    ),
+    "loguniform from zero": (
+        HEAD + '[sample]\nn = 3\nseed = 1\n"v_s[3]" = { loguniform = [0, 1] }\n',
+        "needs 0 < low < high",
+    ),
+    "one number": (
+        HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { uniform = [5e5] }\n',
+        "must be two finite numbers [low, high]",
+    ),
+    "unknown distribution": (
+        HEAD + '[sample]\nn = 3\nseed = 1\n"k[1]" = { triangular = [1, 2] }\n',
+        "sample `k[1]` = {'triangular': [1, 2]}: must be { uniform",
+    ),
     "n zero": (HEAD + '[sample]\nn = 0\nseed = 1\n"k[1]" = { uniform = [5e5, 2e6] }\n', "[sample] `n` = 0"),
     "seed missing": (HEAD + '[sample]\nn = 3\n"k[1]" = { uniform = [5e5, 2e6] }\n', "[sample] `seed` = None"),
     "sample without parameters": (HEAD + "[sample]\nn = 3\nseed = 1\n", "[sample] draws no parameter"),
-    "in grid and sample": (HEAD + GRID + '[sample]\nn = 3\nseed = 1\n"mu_k[3]" = { uniform = [0.1, 0.2] }\n',
-                           "['mu_k[3]'] both in [grid] and in [sample]"),
+    "in grid and sample": (
+        HEAD + GRID + '[sample]\nn = 3\nseed = 1\n"mu_k[3]" = { uniform = [0.1, 0.2] }\n',
+        "['mu_k[3]'] both in [grid] and in [sample]",
+    ),
     "nothing to sweep": (HEAD, "nothing to sweep"),
-    "stop_time missing": ('communication_step = 1e-3\n' + GRID, "`stop_time` is missing"),
-    "negative step": ('stop_time = 0.1\ncommunication_step = -1e-3\n' + GRID,
-                      "`communication_step` = -0.001: must be a positive number"),
-    "step longer than the run": ('stop_time = 0.1\ncommunication_step = 0.2\n' + GRID,
-                                 "communication_step = 0.2 s is longer than stop_time"),
-    "not whole steps": ('stop_time = 0.1005\ncommunication_step = 1e-3\n' + GRID,
-                        "not a whole number of communication steps"),
-    "unknown key": (HEAD + 'stoptime = 1\n' + GRID, "unknown key(s) ['stoptime']"),
+    "stop_time missing": ("communication_step = 1e-3\n" + GRID, "`stop_time` is missing"),
+    "negative step": (
+        "stop_time = 0.1\ncommunication_step = -1e-3\n" + GRID,
+        "`communication_step` = -0.001: must be a positive number",
+    ),
+    "step longer than the run": (
+        "stop_time = 0.1\ncommunication_step = 0.2\n" + GRID,
+        "communication_step = 0.2 s is longer than stop_time",
+    ),
+    "not whole steps": (
+        "stop_time = 0.1005\ncommunication_step = 1e-3\n" + GRID,
+        "not a whole number of communication steps",
+    ),
+    "unknown key": (HEAD + "stoptime = 1\n" + GRID, "unknown key(s) ['stoptime']"),
     "not TOML": (HEAD + GRID + '"k[1]" = [1, \n', "not valid TOML"),
-    "motion file missing": ('stop_time = 0.1\ncommunication_step = 1e-3\nmotion = "no/such.csv"\n' + GRID,
-                            "motion file 'no/such.csv' does not exist"),
+    "motion file missing": (
+        'stop_time = 0.1\ncommunication_step = 1e-3\nmotion = "no/such.csv"\n' + GRID,
+        "motion file 'no/such.csv' does not exist",
+    ),
     "fmu missing": (HEAD + 'fmu = "no/such.fmu"\n' + GRID, "fmu 'no/such.fmu' does not exist"),
 }
 
@@ -61,8 +84,11 @@ MALFORMED = {
 @pytest.mark.parametrize("body, message", MALFORMED.values(), ids=MALFORMED.keys())
 def test_malformed_spec_refused_before_anything_runs(tmp_path, capsys, body, message):
     if 'fmu = "' not in body:
-        body = body.replace('motion = "reference"\n', f'motion = "reference"\nfmu = "{require_fmu()}"\n') \
-            if "motion" in body else f'fmu = "{require_fmu()}"\n' + body
+        body = (
+            body.replace('motion = "reference"\n', f'motion = "reference"\nfmu = "{require_fmu()}"\n')
+            if "motion" in body
+            else f'fmu = "{require_fmu()}"\n' + body
+        )
     path = tmp_path / "bad.toml"
     path.write_text(body)
     out = tmp_path / "out"
@@ -87,13 +113,17 @@ def test_bad_motion_csv_refused(tmp_path, capsys):
 def test_variants_grid_order_times_samples():
     """Grid points in product order (last name fastest), each with the n samples in order;
     each parameter's draws depend only on (seed, its name), not on n or on the others."""
-    s = spec.parse(HEAD + f'fmu = "{require_fmu()}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n"h[1]" = [0, 10]\n'
-                   '[sample]\nn = 3\nseed = 5\n"k[1]" = { uniform = [5e5, 2e6] }\n')
+    s = spec.parse(
+        HEAD + f'fmu = "{require_fmu()}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n"h[1]" = [0, 10]\n'
+        '[sample]\nn = 3\nseed = 5\n"k[1]" = { uniform = [5e5, 2e6] }\n'
+    )
     v = s.variants()
     assert len(v) == len(s) == 12
     assert [(x["mu_k[3]"], x["h[1]"]) for x in v[::3]] == [(0.1, 0), (0.1, 10), (0.2, 0), (0.2, 10)]
     draws = [x["k[1]"] for x in v[:3]]
     assert [x["k[1]"] for x in v[3:6]] == draws and len(set(draws)) == 3
-    more = spec.parse(HEAD + f'fmu = "{require_fmu()}"\n[sample]\nn = 5\nseed = 5\n'
-                      '"m[4]" = { normal = [4, 0.1] }\n"k[1]" = { uniform = [5e5, 2e6] }\n').variants()
+    more = spec.parse(
+        HEAD + f'fmu = "{require_fmu()}"\n[sample]\nn = 5\nseed = 5\n'
+        '"m[4]" = { normal = [4, 0.1] }\n"k[1]" = { uniform = [5e5, 2e6] }\n'
+    ).variants()
     assert [x["k[1]"] for x in more[:3]] == draws

@@ -139,8 +139,9 @@ def _instantiate(fmu_file, name):
     md = read_model_description(str(fmu_file))
     unzipdir = extract(str(fmu_file), unzipdir=str(scratch_dir() / f"unzip-{name}"))
     log = LogCapture()
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=name)
+    slave = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name
+    )
     try:
         slave.instantiate(callbacks=log.callbacks, loggingOn=False)
     except Exception as e:  # fmpy: "Failed to instantiate model"
@@ -166,18 +167,33 @@ def _in_link_3(old, new):
 
 # case: (entries replaced, entries removed, words every one of which an fmi2Error message has)
 CORRUPTIONS = {
-    "negative-mass": ({URDF_ENTRY: _in_link_3('<mass value="3"/>', '<mass value="-1"/>')}, (),
-                      ["fmi2Instantiate", "URDF kuka_iiwa.urdf", LINK_3 + "<inertial><mass>", "-1 is negative"]),
-    "nan-inertia": ({URDF_ENTRY: _in_link_3('ixx="0.08"', 'ixx="nan"')}, (),
-                    ["fmi2Instantiate", "URDF kuka_iiwa.urdf", LINK_3 + "<inertial><inertia>", "`ixx`", "not finite"]),
-    "truncated": ({URDF_ENTRY: IIWA_URDF.read_bytes()[: len(IIWA_URDF.read_bytes()) // 2]}, (),
-                  ["fmi2Instantiate", "URDF kuka_iiwa.urdf", "not well-formed XML"]),
-    "not-utf8": ({URDF_ENTRY: IIWA_URDF.read_bytes().replace(b"lbr_iiwa_link_3", b"lbr_iiwa_link_\xff", 1)}, (),
-                 ["fmi2Instantiate", "cannot read the URDF", "kuka_iiwa.urdf", "UTF-8"]),
+    "negative-mass": (
+        {URDF_ENTRY: _in_link_3('<mass value="3"/>', '<mass value="-1"/>')},
+        (),
+        ["fmi2Instantiate", "URDF kuka_iiwa.urdf", LINK_3 + "<inertial><mass>", "-1 is negative"],
+    ),
+    "nan-inertia": (
+        {URDF_ENTRY: _in_link_3('ixx="0.08"', 'ixx="nan"')},
+        (),
+        ["fmi2Instantiate", "URDF kuka_iiwa.urdf", LINK_3 + "<inertial><inertia>", "`ixx`", "not finite"],
+    ),
+    "truncated": (
+        {URDF_ENTRY: IIWA_URDF.read_bytes()[: len(IIWA_URDF.read_bytes()) // 2]},
+        (),
+        ["fmi2Instantiate", "URDF kuka_iiwa.urdf", "not well-formed XML"],
+    ),
+    "not-utf8": (
+        {URDF_ENTRY: IIWA_URDF.read_bytes().replace(b"lbr_iiwa_link_3", b"lbr_iiwa_link_\xff", 1)},
+        (),
+        ["fmi2Instantiate", "cannot read the URDF", "kuka_iiwa.urdf", "UTF-8"],
+    ),
     "empty": ({URDF_ENTRY: b""}, (), ["fmi2Instantiate", "URDF kuka_iiwa.urdf", "no <robot> element"]),
     # A URDF that is valid but not the one the FMU was built from: its GUID says so.
-    "changed-but-valid": ({URDF_ENTRY: _in_link_3('<mass value="3"/>', '<mass value="3.5"/>')}, (),
-                          ["fmi2Instantiate", "does not match", "GUID"]),
+    "changed-but-valid": (
+        {URDF_ENTRY: _in_link_3('<mass value="3"/>', '<mass value="3.5"/>')},
+        (),
+        ["fmi2Instantiate", "does not match", "GUID"],
+    ),
     "removed": ({}, (URDF_ENTRY,), ["fmi2Instantiate", "cannot read the URDF", "resources", "kuka_iiwa.urdf"]),
 }
 
@@ -189,7 +205,9 @@ def test_corrupted_or_missing_packaged_urdf_fails_instantiate_cleanly_naming_it(
     assert read_model_description(str(bad)).guid == read_model_description(str(fmu)).guid
     ok, errors, unzipdir = _instantiate(bad, f"corrupt-{case}")
     assert not ok, f"{case}: fmi2Instantiate succeeded"
-    assert any(all(w in m for w in words) for m in errors), f"{case}: no fmi2Error message with {words}:\n" + "\n".join(errors)
+    assert any(all(w in m for w in words) for m in errors), f"{case}: no fmi2Error message with {words}:\n" + "\n".join(
+        errors
+    )
     if case == "removed":
         assert any(str(unzipdir) in m for m in errors), errors  # the full path
     # fmpy's one-call simulation raises too, and the process is fine: the intact FMU

@@ -68,12 +68,23 @@ QUANTITIES = ("axial force", "radial force", "axial moment", "bending moment")
 
 # Every joint on a cycloid (within the URDF's limits), staggered, at rest from 0.8 s on.
 MOTIONS = {
-    "kuka_iiwa": [("lbr_iiwa_joint_1", 0.0, 0.8, 0.0, 0.7), ("lbr_iiwa_joint_2", 0.3, 0.9, 0.0, 0.7),
-                  ("lbr_iiwa_joint_3", 0.0, -0.6, 0.1, 0.8), ("lbr_iiwa_joint_4", -0.5, -1.2, 0.05, 0.75),
-                  ("lbr_iiwa_joint_5", 0.0, 0.7, 0.1, 0.6), ("lbr_iiwa_joint_6", 0.4, -0.4, 0.0, 0.8),
-                  ("lbr_iiwa_joint_7", 0.0, 1.0, 0.2, 0.8)],
-    "xarm6": [("joint1", 0.0, 0.8, 0.0, 0.7), ("joint2", 0.0, 0.6, 0.0, 0.7), ("joint3", -0.5, -1.2, 0.05, 0.75),
-              ("joint4", 0.0, 0.8, 0.1, 0.8), ("joint5", 0.3, 1.0, 0.1, 0.6), ("joint6", 0.0, 1.0, 0.2, 0.8)],
+    "kuka_iiwa": [
+        ("lbr_iiwa_joint_1", 0.0, 0.8, 0.0, 0.7),
+        ("lbr_iiwa_joint_2", 0.3, 0.9, 0.0, 0.7),
+        ("lbr_iiwa_joint_3", 0.0, -0.6, 0.1, 0.8),
+        ("lbr_iiwa_joint_4", -0.5, -1.2, 0.05, 0.75),
+        ("lbr_iiwa_joint_5", 0.0, 0.7, 0.1, 0.6),
+        ("lbr_iiwa_joint_6", 0.4, -0.4, 0.0, 0.8),
+        ("lbr_iiwa_joint_7", 0.0, 1.0, 0.2, 0.8),
+    ],
+    "xarm6": [
+        ("joint1", 0.0, 0.8, 0.0, 0.7),
+        ("joint2", 0.0, 0.6, 0.0, 0.7),
+        ("joint3", -0.5, -1.2, 0.05, 0.75),
+        ("joint4", 0.0, 0.8, 0.1, 0.8),
+        ("joint5", 0.3, 1.0, 0.1, 0.6),
+        ("joint6", 0.0, 1.0, 0.2, 0.8),
+    ],
 }
 STOP_TIME = 1.0
 STEP = 1e-3
@@ -126,7 +137,11 @@ def random_comparison(model_paths, tmp_path_factory):
 def motion_toml(arm: str) -> str:
     lines = [f"end = {STOP_TIME!r}"]
     for name, q0, q1, t0, t1 in MOTIONS[arm]:
-        lines += ["[[joint]]", f'name = "{name}"', f"cycloid = {{ q0 = {q0!r}, q1 = {q1!r}, t0 = {t0!r}, t1 = {t1!r} }}"]
+        lines += [
+            "[[joint]]",
+            f'name = "{name}"',
+            f"cycloid = {{ q0 = {q0!r}, q1 = {q1!r}, t0 = {t0!r}, t1 = {t1!r} }}",
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -135,14 +150,22 @@ def run_fmu(fmu, motion_path, parameters: dict) -> dict:
     md = read_model_description(str(fmu))
     unzipped = extract(str(fmu))
     n = sum(1 for v in md.modelVariables if v.name.startswith("q_star["))
-    names = ([f"{b}[{i}]" for b in ("q", "qd", "qdd", "F_drive", "F_friction", "N_normal", "n_stick") for i in range(1, n + 1)]
-             + [f"{b}[{i},{k}]" for b in ("f", "n") for i in range(1, n + 1) for k in (1, 2, 3)]
-             + [f"x_E[{k}]" for k in (1, 2, 3)] + ["n_substeps"])
+    names = (
+        [
+            f"{b}[{i}]"
+            for b in ("q", "qd", "qdd", "F_drive", "F_friction", "N_normal", "n_stick")
+            for i in range(1, n + 1)
+        ]
+        + [f"{b}[{i},{k}]" for b in ("f", "n") for i in range(1, n + 1) for k in (1, 2, 3)]
+        + [f"x_E[{k}]" for k in (1, 2, 3)]
+        + ["n_substeps"]
+    )
     vr = {v.name: v.valueReference for v in md.modelVariables}
     descriptions = {v.name: v.description or "" for v in md.modelVariables}
     refs = [vr[x] for x in names]
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName="pinocchio")
+    slave = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="pinocchio"
+    )
     slave.instantiate()
     try:
         motion = load_motion_for(motion_path, md)
@@ -211,8 +234,10 @@ def assert_reactions_agree(mf, eng_f, eng_n, ref_f, ref_n, where: str):
             dev = relative_deviation(got[name], want[name], f_floor if "force" in name else n_floor)
             worst[name] = max(worst.get(name, 0.0), dev)
             if dev > REL:
-                failures.append(f"joint {i} ({mf.names[i - 1]}) {name}: {dev:.3e} relative "
-                                f"(largest {np.max(np.abs(want[name])):.6g})")
+                failures.append(
+                    f"joint {i} ({mf.names[i - 1]}) {name}: {dev:.3e} relative "
+                    f"(largest {np.max(np.abs(want[name])):.6g})"
+                )
         for name, a, b, floor in (("force vector", eng_f, ref_f, f_floor), ("moment vector", eng_n, ref_n, n_floor)):
             dev = relative_deviation(a[:, i - 1], b[:, i - 1], floor)
             worst[name] = max(worst.get(name, 0.0), dev)
@@ -363,8 +388,10 @@ def test_random_states_mass_matrix_equals_pinocchio_crba(random_comparison, arm,
     dev = float(np.max(np.abs(eng["M"] - ref["M"]) / scale))
     print(f"{arm}/{variant}: M worst relative deviation {dev:.2e}")
     assert dev <= REL
-    assert np.array_equal(eng["M"], np.transpose(eng["M"], (0, 2, 1))) or \
-        float(np.max(np.abs(eng["M"] - np.transpose(eng["M"], (0, 2, 1))) / scale)) <= 1e-15
+    assert (
+        np.array_equal(eng["M"], np.transpose(eng["M"], (0, 2, 1)))
+        or float(np.max(np.abs(eng["M"] - np.transpose(eng["M"], (0, 2, 1))) / scale)) <= 1e-15
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -405,11 +432,14 @@ def test_fmu_motion_equations_of_motion_equal_pinocchio_rnea(fmu_runs, arm, vari
         rhs = out[f"F_drive[{i}]"] - out[f"F_friction[{i}]"]
         devs.append(relative_deviation(rhs, ref["tau"][:, i - 1]))
     flexible = [mf.flexible(i) for i in range(1, mf.n + 1)]
-    worst = lambda sel: ", ".join(f"{i}: {d:.2e}" for i, (d, fl) in enumerate(zip(devs, flexible), 1) if fl == sel) \
-        or "none"  # noqa: E731
+    worst = lambda sel: (
+        ", ".join(f"{i}: {d:.2e}" for i, (d, fl) in enumerate(zip(devs, flexible), 1) if fl == sel) or "none"
+    )  # noqa: E731
     stiction = [int(out[f"n_stick[{i}]"][-1]) for i in range(1, mf.n + 1)]
-    print(f"{arm}/{variant} FMU motion: equation of motion relative deviation, flexible joints {worst(True)}; "
-          f"rigid joints {worst(False)}; {out['n_substeps'][-1]:.0f} sub-steps, stiction phases per joint {stiction}")
+    print(
+        f"{arm}/{variant} FMU motion: equation of motion relative deviation, flexible joints {worst(True)}; "
+        f"rigid joints {worst(False)}; {out['n_substeps'][-1]:.0f} sub-steps, stiction phases per joint {stiction}"
+    )
     assert max(devs) <= REL, f"{arm}/{variant}: per joint {devs}"
     # The motion moved every joint and the flexible ones deflected.
     for i in range(1, mf.n + 1):
@@ -435,8 +465,10 @@ def test_fmu_motion_end_point_and_bearing_loads_equal_pinocchio(fmu_runs, arm, v
             continue
         want = bearing_normal_load(b, ref["f"][:, i - 1], ref["n"][:, i - 1])
         devs[i] = relative_deviation(out[f"N_normal[{i}]"], want)
-    print(f"{arm}/{variant} FMU motion: x_E {dev:.2e}, N_normal per joint " +
-          ", ".join(f"{i}: {d:.2e}" for i, d in devs.items()))
+    print(
+        f"{arm}/{variant} FMU motion: x_E {dev:.2e}, N_normal per joint "
+        + ", ".join(f"{i}: {d:.2e}" for i, d in devs.items())
+    )
     assert dev <= REL
     assert devs and max(devs.values()) <= REL, devs
 
@@ -448,8 +480,10 @@ def test_fmu_default_settings_equation_of_motion_within_newmark_tolerance(fmu_ru
     equation of motion holds with Pinocchio's RNEA to 1e-6 relative (per joint, to its largest
     |tau|); the reactions, functions of the state alone, still agree to 1e-9."""
     mf, out, ref = fmu_runs(arm, "flexible", "default")
-    devs = [relative_deviation(out[f"F_drive[{i}]"] - out[f"F_friction[{i}]"], ref["tau"][:, i - 1])
-            for i in range(1, mf.n + 1)]
+    devs = [
+        relative_deviation(out[f"F_drive[{i}]"] - out[f"F_friction[{i}]"], ref["tau"][:, i - 1])
+        for i in range(1, mf.n + 1)
+    ]
     print(f"{arm} FMU defaults: equation of motion per joint {np.array(devs)}")
     assert max(devs) <= 1e-6
     n = mf.n
@@ -488,8 +522,9 @@ def test_mujoco_bench_arm_has_pinocchio_dynamics_and_model_file_drives(arm):
     model = pinocchio_model(mf)
     assert m.nq == m.nv == mf.n
     assert [m.joint(j).name for j in range(m.njnt)] == mf.names
-    assert math.isclose(float(np.sum(m.body_mass)), sum(model.inertias[j].mass for j in range(1, model.njoints)),
-                        rel_tol=1e-12)
+    assert math.isclose(
+        float(np.sum(m.body_mass)), sum(model.inertias[j].mass for j in range(1, model.njoints)), rel_tol=1e-12
+    )
     assert np.all(m.dof_damping == 0.0)
     for i, name in enumerate(mf.names, start=1):
         entry = mf.entries.get(name, {})

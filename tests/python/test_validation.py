@@ -45,8 +45,11 @@ def test_archive_layout_and_interface():
     for name in input_names():
         assert v.by_name[name].causality == "input", name
     expected_outputs = (
-        [f"{g}[{i}]" for g in ("q", "qd", "qdd", "stick", "F_drive", "F_friction", "N_normal", "eps_joint")
-         for i in range(1, 5)]
+        [
+            f"{g}[{i}]"
+            for g in ("q", "qd", "qdd", "stick", "F_drive", "F_friction", "N_normal", "eps_joint")
+            for i in range(1, 5)
+        ]
         + [f"{g}[{i},{k}]" for g in ("f", "n") for i in range(1, 5) for k in range(1, 4)]
         + ["eps", "x_E[1]", "x_E[2]", "x_E[3]", "E_kin", "E_pot", "E_spring", "W_drive", "Q_friction", "Q_damping"]
     )
@@ -65,8 +68,21 @@ def test_archive_layout_and_interface():
         counts = var.name.startswith("n_stick[") or var.name in ("n_substeps", "n_rejected")
         if var.type == "Real" and var.causality in ("input", "output") and not counts:
             assert var.unit, f"{var.name} has no unit"
-    units = {"q[1]": "rad", "q[3]": "m", "qd[3]": "m/s", "F_drive[1]": "N.m", "F_drive[3]": "N",
-             "f[1,1]": "N", "n[1,1]": "N.m", "eps": "m", "x_E[1]": "m", "E_kin": "J", "q_star[1]": "rad",
-             "h_last": "s", "h_min": "s", "h_max": "s"}
+    units = {
+        "q[1]": "rad",
+        "q[3]": "m",
+        "qd[3]": "m/s",
+        "F_drive[1]": "N.m",
+        "F_drive[3]": "N",
+        "f[1,1]": "N",
+        "n[1,1]": "N.m",
+        "eps": "m",
+        "x_E[1]": "m",
+        "E_kin": "J",
+        "q_star[1]": "rad",
+        "h_last": "s",
+        "h_min": "s",
+        "h_max": "s",
+    }
     for name, unit in units.items():
         assert v.by_name[name].unit == unit, (name, v.by_name[name].unit)

@@ -45,8 +45,16 @@ def model_fmu(key: str, model: Path, env: str) -> Path:
     if prebuilt:
         return Path(prebuilt).resolve()
     out = scratch_dir() / f"{key}.fmu"
-    cmd = ["bash", "scripts/build_fmu.sh", "--platforms", _platforms_under_test(), "--model", str(model),
-           "--out", str(out)]
+    cmd = [
+        "bash",
+        "scripts/build_fmu.sh",
+        "--platforms",
+        _platforms_under_test(),
+        "--model",
+        str(model),
+        "--out",
+        str(out),
+    ]
     started = time.perf_counter()
     r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     BUILD_SECONDS[key] = time.perf_counter() - started

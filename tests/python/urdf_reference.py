@@ -126,7 +126,7 @@ def rigid_variant(path, out_dir) -> Path:
     mf = model_file(path)
     shutil.copyfile(mf.urdf, out_dir / mf.urdf.name)
     text = path.read_text(encoding="utf-8")
-    new, count = re.subn(r'(?m)^drive\s*=\s*\{[^}\n]*\}', 'drive = { type = "rigid" }', text)
+    new, count = re.subn(r"(?m)^drive\s*=\s*\{[^}\n]*\}", 'drive = { type = "rigid" }', text)
     assert count == sum(mf.flexible(i) for i in range(1, mf.n + 1)), "every flexible drive line replaced"
     out = out_dir / (path.stem + "_rigid.toml")
     out.write_text(new, encoding="utf-8")
@@ -161,8 +161,13 @@ def pinocchio_dynamics(model, mf: ModelFile, q, qd, qdd, reaction_points: bool =
     tip = model.getFrameId(mf.tip_link)
     assert tip < model.nframes, f"no frame {mf.tip_link} in Pinocchio's model"
     n, rows = mf.n, len(q)
-    out = {"tau": np.empty((rows, n)), "f": np.empty((rows, n, 3)), "n": np.empty((rows, n, 3)),
-           "x_E": np.empty((rows, 3)), "M": np.empty((rows, n, n))}
+    out = {
+        "tau": np.empty((rows, n)),
+        "f": np.empty((rows, n, 3)),
+        "n": np.empty((rows, n, 3)),
+        "x_E": np.empty((rows, 3)),
+        "M": np.empty((rows, n, n)),
+    }
     points = [mf.reaction_point(i) if reaction_points else np.zeros(3) for i in range(1, n + 1)]
     for k in range(rows):
         out["tau"][k] = pin.rnea(model, data, q[k], qd[k], qdd[k])
@@ -248,8 +253,12 @@ def engine_inverse_dynamics(model_path, q, qd, qdd, work_dir) -> dict:
         for row in np.hstack([q, qd, qdd]):
             fh.write(",".join(repr(float(x)) for x in row) + "\n")
     exe = engine_binaries() / "inverse_dynamics"
-    subprocess.run([str(exe), "--model", str(model_path), "--states", str(states), "--out", str(out)],
-                   check=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    subprocess.run(
+        [str(exe), "--model", str(model_path), "--states", str(states), "--out", str(out)],
+        check=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     t = read_table(out)
     col = lambda name: t[name]  # noqa: E731
     return {
@@ -257,16 +266,21 @@ def engine_inverse_dynamics(model_path, q, qd, qdd, work_dir) -> dict:
         "f": np.stack([np.stack([col(f"f[{i},{k}]") for k in (1, 2, 3)], axis=1) for i in range(1, n + 1)], axis=1),
         "n": np.stack([np.stack([col(f"n[{i},{k}]") for k in (1, 2, 3)], axis=1) for i in range(1, n + 1)], axis=1),
         "x_E": np.stack([col(f"x_E[{k}]") for k in (1, 2, 3)], axis=1),
-        "M": np.stack([np.stack([col(f"M[{i},{j}]") for j in range(1, n + 1)], axis=1) for i in range(1, n + 1)],
-                      axis=1),
+        "M": np.stack(
+            [np.stack([col(f"M[{i},{j}]") for j in range(1, n + 1)], axis=1) for i in range(1, n + 1)], axis=1
+        ),
     }
 
 
 def package_fmu(model_path, out) -> Path:
     """The FMU (linux64 binary only) of a model file, by ``package_fmu --model FILE --out FILE``."""
     exe = engine_binaries() / "package_fmu"
-    r = subprocess.run([str(exe), "--model", str(model_path), "--out", str(out)],
-                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    r = subprocess.run(
+        [str(exe), "--model", str(model_path), "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     if r.returncode != 0:
         raise RuntimeError(f"package_fmu --model {model_path} failed: {r.stderr}")
     return Path(out)

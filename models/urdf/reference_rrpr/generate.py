@@ -10,6 +10,7 @@ the DH file's link 2 exactly (15 kg at z = 0.1, diag(0.228, 0.228, 0.05625)).
 
     python models/urdf/reference_rrpr/generate.py > models/urdf/reference_rrpr/reference_rrpr.urdf
 """
+
 import sys
 
 import numpy as np
@@ -56,7 +57,7 @@ sys.stdout.write(f'''<?xml version="1.0"?>
   <link name="base"/>
   <joint name="j1" type="revolute">
     <parent link="base"/><child link="link_1"/>
-    <origin xyz="0 0 0.6" rpy="{pi/2!r} 0 0"/>
+    <origin xyz="0 0 0.6" rpy="{pi / 2!r} 0 0"/>
     <axis xyz="0 1 0"/>
     <limit lower="-3.14" upper="3.14" effort="1000" velocity="3"/>
   </joint>
@@ -66,7 +67,7 @@ sys.stdout.write(f'''<?xml version="1.0"?>
   </link>
   <joint name="j2" type="continuous">
     <parent link="link_1"/><child link="link_2"/>
-    <origin xyz="0 0 0" rpy="{pi/2!r} 0 {pi/2!r}"/>
+    <origin xyz="0 0 0" rpy="{pi / 2!r} 0 {pi / 2!r}"/>
     <axis xyz="0 1 0"/>
   </joint>
   <link name="link_2">

@@ -210,7 +210,8 @@ pub fn documentation_html(model: &Model, model_text: &str) -> String {
         e(&model.name),
         e(&guid),
         match &urdf {
-            Some(u) => format!(", with the URDF it names (<code>resources/{}</code>)", e(u.rsplit('/').next().unwrap_or(u))),
+            Some(u) =>
+                format!(", with the URDF it names (<code>resources/{}</code>)", e(u.rsplit('/').next().unwrap_or(u))),
             None => String::new(),
         },
         number(start),
@@ -487,8 +488,11 @@ fn write_coupling(h: &mut String, model: &Model, vars: &[Variable]) {
         );
         for j in motors {
             let i = j + 1;
-            let inputs: Vec<String> =
-                [format!("tau_m[{i}]")].into_iter().filter(|n| has(n)).map(|n| format!("<code>{}</code>", e(&n))).collect();
+            let inputs: Vec<String> = [format!("tau_m[{i}]")]
+                .into_iter()
+                .filter(|n| has(n))
+                .map(|n| format!("<code>{}</code>", e(&n)))
+                .collect();
             let outputs: Vec<String> = ["theta_m", "omega_m", "stick_m", "tau_load", "tau_f_m", "q", "eps_joint"]
                 .iter()
                 .map(|k| format!("{k}[{i}]"))
@@ -534,7 +538,10 @@ mod tests {
             for (k, _) in text.match_indices('&') {
                 let reference = &text[k..];
                 let end = reference.find(';').expect("& starts a reference");
-                assert!(end <= 8 && reference[1..end].chars().all(|c| c.is_ascii_alphanumeric() || c == '#'), "bare & in {text:?}");
+                assert!(
+                    end <= 8 && reference[1..end].chars().all(|c| c.is_ascii_alphanumeric() || c == '#'),
+                    "bare & in {text:?}"
+                );
             }
             let close = rest[open..].find('>').expect("tag closes") + open;
             let tag = &rest[open + 1..close];
@@ -569,7 +576,8 @@ mod tests {
             let html = documentation_html(&model, text);
             check_balanced(&html);
             for v in variables(&model) {
-                let row = format!("<code>{}</code></td><td class=\"num\">{}</td>", escape_html(&v.name), v.value_reference);
+                let row =
+                    format!("<code>{}</code></td><td class=\"num\">{}</td>", escape_html(&v.name), v.value_reference);
                 assert!(html.contains(&row), "{} missing", v.name);
                 assert!(html.contains(&escape_html(&v.description)), "description of {} missing", v.name);
             }

@@ -50,4 +50,3 @@ pub(super) fn joint_label(model: &Model, j: usize) -> String {
         None => format!("joint {} ({kind}, {drive} drive)", j + 1),
     }
 }
-

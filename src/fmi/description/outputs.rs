@@ -105,15 +105,35 @@ const fn output(
 
 /// Every output kind, in the order of the variables.
 pub const OUTPUTS: &[OutputKind] = &[
-    output("q", Arity::PerJoint, OutputUnit::Coordinate, |m, j, _| format!("Joint coordinate q of {}", joint_label(m, j)), |s, j, _| s.q[j]),
-    output("qd", Arity::PerJoint, OutputUnit::Rate, |m, j, _| format!("Joint velocity q' of {}", joint_label(m, j)), |s, j, _| s.qd[j]),
-    output("qdd", Arity::PerJoint, OutputUnit::Acceleration, |m, j, _| format!("Joint acceleration q'' of {}", joint_label(m, j)), |s, j, _| s.qdd[j]),
+    output(
+        "q",
+        Arity::PerJoint,
+        OutputUnit::Coordinate,
+        |m, j, _| format!("Joint coordinate q of {}", joint_label(m, j)),
+        |s, j, _| s.q[j],
+    ),
+    output(
+        "qd",
+        Arity::PerJoint,
+        OutputUnit::Rate,
+        |m, j, _| format!("Joint velocity q' of {}", joint_label(m, j)),
+        |s, j, _| s.qd[j],
+    ),
+    output(
+        "qdd",
+        Arity::PerJoint,
+        OutputUnit::Acceleration,
+        |m, j, _| format!("Joint acceleration q'' of {}", joint_label(m, j)),
+        |s, j, _| s.qdd[j],
+    ),
     OutputKind {
         name: "stick",
         arity: Arity::PerJoint,
         unit: OutputUnit::None,
         boolean: true,
-        description: |m, j, _| format!("True while {} is in its stiction phase (always false for a rigid drive)", joint_label(m, j)),
+        description: |m, j, _| {
+            format!("True while {} is in its stiction phase (always false for a rigid drive)", joint_label(m, j))
+        },
         value: |s, j, _| f64::from(u8::from(s.is_stuck(j))),
     },
     output(
@@ -146,7 +166,9 @@ pub const OUTPUTS: &[OutputKind] = &[
         "F_friction",
         Arity::PerJoint,
         OutputUnit::Force,
-        |m, j, _| format!("Friction force F^f of {}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint", joint_label(m, j)),
+        |m, j, _| {
+            format!("Friction force F^f of {}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint", joint_label(m, j))
+        },
         |s, j, _| s.friction_force[j],
     ),
     output(
@@ -166,14 +188,18 @@ pub const OUTPUTS: &[OutputKind] = &[
         "f",
         Arity::PerJointVector,
         OutputUnit::Fixed("N"),
-        |m, j, k| format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j)),
+        |m, j, k| {
+            format!("Component {} of the force exerted by link {j} on link {} at the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j))
+        },
         |s, j, k| s.reaction_force[j][k],
     ),
     output(
         "n",
         Arity::PerJointVector,
         OutputUnit::Fixed("N.m"),
-        |m, j, k| format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j)),
+        |m, j, k| {
+            format!("Component {} of the moment exerted by link {j} on link {} about the reaction reference point of joint {}, {}", k + 1, j + 1, j + 1, reaction_frame(m, j))
+        },
         |s, j, k| s.reaction_moment[j][k],
     ),
     output(
@@ -187,7 +213,10 @@ pub const OUTPUTS: &[OutputKind] = &[
         "eps",
         Arity::Single,
         OutputUnit::Fixed("m"),
-        |_, _, _| "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it".into(),
+        |_, _, _| {
+            "End point error |x_E(q) - x_E(q*)| (4.1): distance of the gripper tip from where rigid drives would put it"
+                .into()
+        },
         |s, _, _| s.end_point_error(),
     ),
     output(
@@ -197,7 +226,13 @@ pub const OUTPUTS: &[OutputKind] = &[
         |_, _, k| format!("Coordinate {} of the end point E in the base frame 0", k + 1),
         |s, _, k| s.end_point[k],
     ),
-    output("E_kin", Arity::Single, OutputUnit::Fixed("J"), |_, _, _| "Kinetic energy of the links".into(), |s, _, _| s.energy.kinetic),
+    output(
+        "E_kin",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Kinetic energy of the links".into(),
+        |s, _, _| s.energy.kinetic,
+    ),
     output(
         "E_pot",
         Arity::Single,
@@ -205,12 +240,20 @@ pub const OUTPUTS: &[OutputKind] = &[
         |_, _, _| "Potential energy of gravity (zero at the origin of frame 0)".into(),
         |s, _, _| s.energy.potential,
     ),
-    output("E_spring", Arity::Single, OutputUnit::Fixed("J"), |_, _, _| "Elastic energy of the drive springs".into(), |s, _, _| s.energy.spring),
+    output(
+        "E_spring",
+        Arity::Single,
+        OutputUnit::Fixed("J"),
+        |_, _, _| "Elastic energy of the drive springs".into(),
+        |s, _, _| s.energy.spring,
+    ),
     output(
         "W_drive",
         Arity::Single,
         OutputUnit::Fixed("J"),
-        |_, _, _| "Work done by the drives since initialization (flexible drive ends, rigid drives, and the motors' torque tau_m over theta_m)".into(),
+        |_, _, _| {
+            "Work done by the drives since initialization (flexible drive ends, rigid drives, and the motors' torque tau_m over theta_m)".into()
+        },
         |s, _, _| s.energy.drive_work,
     ),
     output(
@@ -231,7 +274,9 @@ pub const OUTPUTS: &[OutputKind] = &[
         "theta_m",
         Arity::PerRotor,
         OutputUnit::Fixed("rad"),
-        |m, j, _| format!("Rotor angle theta_m of the motor of {} (motor side); the motor encoder reads theta_m/N = q* in joint units", joint_label(m, j)),
+        |m, j, _| {
+            format!("Rotor angle theta_m of the motor of {} (motor side); the motor encoder reads theta_m/N = q* in joint units", joint_label(m, j))
+        },
         |s, _, r| s.theta_m(r),
     ),
     output(
@@ -246,14 +291,21 @@ pub const OUTPUTS: &[OutputKind] = &[
         arity: Arity::PerRotor,
         unit: OutputUnit::None,
         boolean: true,
-        description: |m, j, _| format!("True while the rotor of the motor of {} is held by its Coulomb friction tau_c", joint_label(m, j)),
+        description: |m, j, _| {
+            format!("True while the rotor of the motor of {} is held by its Coulomb friction tau_c", joint_label(m, j))
+        },
         value: |s, _, r| f64::from(u8::from(s.is_stuck(s.rotor_coordinate(r)))),
     },
     output(
         "n_stick_m",
         Arity::PerRotor,
         OutputUnit::None,
-        |m, j, _| format!("Number of stiction phases the rotor of the motor of {} has entered since initialization", joint_label(m, j)),
+        |m, j, _| {
+            format!(
+                "Number of stiction phases the rotor of the motor of {} has entered since initialization",
+                joint_label(m, j)
+            )
+        },
         |s, _, r| s.stick_count[s.rotor_coordinate(r)] as f64,
     ),
     output(
@@ -272,7 +324,12 @@ pub const OUTPUTS: &[OutputKind] = &[
         "tau_f_m",
         Arity::PerRotor,
         OutputUnit::Fixed("N.m"),
-        |m, j, _| format!("Coulomb friction torque tau_f of the motor of {}; while stuck, the torque that holds the rotor", joint_label(m, j)),
+        |m, j, _| {
+            format!(
+                "Coulomb friction torque tau_f of the motor of {}; while stuck, the torque that holds the rotor",
+                joint_label(m, j)
+            )
+        },
         |s, _, r| s.friction_force[s.rotor_coordinate(r)],
     ),
     output(
@@ -293,7 +350,9 @@ pub const OUTPUTS: &[OutputKind] = &[
         "n_substeps",
         Arity::Single,
         OutputUnit::None,
-        |_, _, _| "Newmark sub-steps accepted since initialization, including those that end at a stick-slip or clearance event".into(),
+        |_, _, _| {
+            "Newmark sub-steps accepted since initialization, including those that end at a stick-slip or clearance event".into()
+        },
         |s, _, _| s.steps.accepted as f64,
     ),
     output(
@@ -307,7 +366,9 @@ pub const OUTPUTS: &[OutputKind] = &[
         "h_last",
         Arity::Single,
         OutputUnit::Fixed("s"),
-        |_, _, _| "Length of the last accepted sub-step (h_min where the error control needs the floor, h_max where the motion is smooth)".into(),
+        |_, _, _| {
+            "Length of the last accepted sub-step (h_min where the error control needs the floor, h_max where the motion is smooth)".into()
+        },
         |s, _, _| s.steps.last_h,
     ),
 ];

@@ -436,12 +436,26 @@ fn start_values(b: &mut Builder, model: &Model) {
             "Start angle theta_m of the rotor of {}, used when use_start_values = true and static_start = false",
             joint_label(model, j)
         );
-        b.push(format!("theta_m_start[{}]", j + 1), description, FIXED, real_start(Some("rad"), 0.0), Quantity::StartThetaM(j));
+        b.push(
+            format!("theta_m_start[{}]", j + 1),
+            description,
+            FIXED,
+            real_start(Some("rad"), 0.0),
+            Quantity::StartThetaM(j),
+        );
     }
     for &j in &motors {
-        let description =
-            format!("Start speed theta_m' of the rotor of {}, used when use_start_values = true", joint_label(model, j));
-        b.push(format!("omega_m_start[{}]", j + 1), description, FIXED, real_start(Some("rad/s"), 0.0), Quantity::StartOmegaM(j));
+        let description = format!(
+            "Start speed theta_m' of the rotor of {}, used when use_start_values = true",
+            joint_label(model, j)
+        );
+        b.push(
+            format!("omega_m_start[{}]", j + 1),
+            description,
+            FIXED,
+            real_start(Some("rad/s"), 0.0),
+            Quantity::StartOmegaM(j),
+        );
     }
     if !motors.is_empty() {
         b.push(
@@ -489,7 +503,9 @@ fn outputs(b: &mut Builder, model: &Model) {
             Arity::Single => vec![(0, 0, kind.name.to_string())],
             Arity::SingleWithRotors if motors.is_empty() => vec![],
             Arity::SingleWithRotors => vec![(0, 0, kind.name.to_string())],
-            Arity::PerRotor => motors.iter().enumerate().map(|(r, &j)| (j, r, format!("{}[{}]", kind.name, j + 1))).collect(),
+            Arity::PerRotor => {
+                motors.iter().enumerate().map(|(r, &j)| (j, r, format!("{}[{}]", kind.name, j + 1))).collect()
+            }
             Arity::Vector => (0..3).map(|k| (0, k, format!("{}[{}]", kind.name, k + 1))).collect(),
             Arity::PerJoint => (0..n).map(|j| (j, 0, format!("{}[{}]", kind.name, j + 1))).collect(),
             Arity::PerJointVector => (0..n)

@@ -242,10 +242,7 @@ pub fn assert_bad_calls_are_errors(import: &Fmi2Import) {
     assert!(matches!(inst.set_real(&[unknown], &[1.0]), Err(Fmi2Error::Error)), "fmi2SetReal of vr {unknown}");
     let s = inst.get_fmu_state().expect("fmi2GetFMUstate");
     let bytes = inst.serialize_fmu_state(&s).expect("fmi2SerializeFMUstate");
-    assert!(
-        matches!(inst.deserialize_fmu_state(&bytes[..bytes.len() - 1]), Err(Fmi2Error::Error)),
-        "truncated state"
-    );
+    assert!(matches!(inst.deserialize_fmu_state(&bytes[..bytes.len() - 1]), Err(Fmi2Error::Error)), "truncated state");
     // still usable: the NaN was not taken
     step(&mut inst, &layout, &inputs[0], 0);
     assert!(layout.row(&mut inst).iter().all(|x| x.is_finite()));
@@ -302,5 +299,6 @@ pub fn write_bytes(name: &str, bytes: &[u8]) {
 
 pub fn read_bytes(name: &str) -> Vec<u8> {
     let path = xplat_file(name);
-    std::fs::read(&path).unwrap_or_else(|e| panic!("read {}: {e} (written by the other platform's stage)", path.display()))
+    std::fs::read(&path)
+        .unwrap_or_else(|e| panic!("read {}: {e} (written by the other platform's stage)", path.display()))
 }

@@ -10,5 +10,10 @@ fn linux64_restores_a_win64_state() {
     let win = Record::read("win64-motion.txt");
     let state = read_bytes("win64-state.bin");
     let after = continue_from_state(&import(), &state, &win.inputs);
-    assert_agree("win64 state restored on linux64", &win.names, &after, &win.rows[STATE_AT + 1..=STATE_AT + AFTER_STATE]);
+    assert_agree(
+        "win64 state restored on linux64",
+        &win.names,
+        &after,
+        &win.rows[STATE_AT + 1..=STATE_AT + AFTER_STATE],
+    );
 }

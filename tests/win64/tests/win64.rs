@@ -31,7 +31,11 @@ fn win64_runs_the_reference_motion_like_linux64() {
     // src/motion.rs) to the same bits as glibc's: reported, not required.
     let own = reference_inputs();
     let differing = own.iter().flatten().zip(linux.inputs.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits());
-    eprintln!("reference inputs computed on win64 that differ in bits from linux64's: {} of {}", differing.count(), 12 * STEPS);
+    eprintln!(
+        "reference inputs computed on win64 that differ in bits from linux64's: {} of {}",
+        differing.count(),
+        12 * STEPS
+    );
 }
 
 #[test]
