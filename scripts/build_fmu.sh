@@ -14,13 +14,14 @@
 #   1. linux64: cargo build --release --lib --bin package_fmu   (the cdylib;
 #      build.rs also writes modelDescription/modelDescription.xml)
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
-#      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir target/win64
+#      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir
+#      $STICKSLIP_CACHE_DIR/cross (outside the clone, shared by every clone)
 #   2b. darwin64 (unless left out): the same library cross-built for
 #      x86_64-apple-darwin and aarch64-apple-darwin (scripts/darwin64.sh),
-#      target dir target/darwin64, merged by llvm-lipo into one universal dylib
+#      the same target dir, merged by llvm-lipo into one universal dylib
 #   3. copies stripped of debug info and symbol table (strip --strip-all, into
 #      target/fmu/stripped/): the FMU ships those; target/release and
-#      target/win64/…/release keep the debug info for local profiling (the
+#      target/fmu/stripped/unstripped.dll keep the debug info for local profiling (the
 #      darwin64 dylib is linked stripped: stripping afterwards would break
 #      the arm64 slice's code signature)
 #   4. checks every shipped binary's interface: exactly the 34 FMI 2.0
@@ -104,9 +105,15 @@ if [ "$win64" -eq 1 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
     win64_start=$SECONDS
-    win64_cargo build --release --lib
     DLL="$STRIPPED/StickSlipManipulator.dll"
-    x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$WIN64_RELEASE/stick_slip_manipulator.dll"
+    # Build and strip under the shared cache's lock (scripts/win64.sh): another
+    # clone's build cannot replace the DLL in between.
+    mkdir -p "$WIN64_TARGET_DIR"
+    (
+        flock 9
+        win64_cargo build --release --lib && cp "$WIN64_RELEASE/stick_slip_manipulator.dll" "$STRIPPED/unstripped.dll"
+    ) 9>"$WIN64_LOCK"
+    x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$STRIPPED/unstripped.dll"
     exports=$(x86_64-w64-mingw32-objdump -p "$DLL" | sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/p' | awk 'NR > 1 && /^[[:space:]]*\[/ {print $NF}')
     printf '%s\n' "$exports" | check_exports "$DLL"
     # Imports: Windows system DLLs only (no libgcc_s, libwinpthread, libstdc++).
@@ -117,7 +124,7 @@ if [ "$win64" -eq 1 ]; then
         printf '  %s\n' $foreign >&2
         exit 1
     fi
-    echo "build_fmu.sh: win64 $(size "$WIN64_RELEASE/stick_slip_manipulator.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports); cargo $((SECONDS - win64_start)) s"
+    echo "build_fmu.sh: win64 $(size "$STRIPPED/unstripped.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports); cargo $((SECONDS - win64_start)) s"
     package_args+=(--win64-lib "$DLL")
 fi
 

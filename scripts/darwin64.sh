@@ -18,17 +18,21 @@
 #   * universal file: `llvm-lipo` of Debian's LLVM (package llvm-14).
 # Minimum macOS: 10.13 for x86_64, 11.0 for arm64 (the first macOS on Apple
 # silicon), see _darwin64_env.
-# The cargo build goes to $DARWIN64_CARGO_DIR (<target>/win64, shared with the
-# win64 build, see darwin64_cargo), the rest to $DARWIN64_TARGET_DIR
-# (<target>/darwin64: zig venv, SDK stubs, the universal dylib).
+# The cargo build goes to $DARWIN64_CARGO_DIR (the win64 build's cache outside
+# the clone, $STICKSLIP_CACHE_DIR/cross, see darwin64_cargo and scripts/win64.sh
+# for how it is invalidated), the zig venv and SDK stubs to
+# $STICKSLIP_CACHE_DIR/darwin64, the universal dylib to $DARWIN64_TARGET_DIR
+# (<target>/darwin64, the clone's own).
 #
 #   darwin64_cargo SUBCOMMAND ARGS...  /usr/bin/cargo for both Apple targets
 #                                      at once (niced), in a subshell
 #   darwin64_build                     both slices, merged into $DARWIN64_DYLIB
 
 DARWIN64_TARGET_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/darwin64"
-DARWIN64_CARGO_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/win64"   # shared with win64, see darwin64_cargo
-DARWIN64_ZIG_VENV="${STICKSLIP_ZIG_VENV:-$DARWIN64_TARGET_DIR/zig-venv}"
+DARWIN64_CACHE_DIR="${STICKSLIP_CACHE_DIR:?scripts/env.sh sets STICKSLIP_CACHE_DIR}/darwin64"
+DARWIN64_CARGO_DIR="$STICKSLIP_CACHE_DIR/cross"   # shared with win64, see darwin64_cargo
+DARWIN64_LOCK="$DARWIN64_CARGO_DIR.lock"          # = WIN64_LOCK
+DARWIN64_ZIG_VENV="${STICKSLIP_ZIG_VENV:-$DARWIN64_CACHE_DIR/zig-venv}"
 DARWIN64_DYLIB="$DARWIN64_TARGET_DIR/StickSlipManipulator.dylib"
 DARWIN64_INSTALL_NAME=@rpath/StickSlipManipulator.dylib
 # The only library the dylib may load: every macOS has it (in the dyld shared cache).
@@ -65,20 +69,24 @@ _darwin64_lld() {
 # name arm64 code as `arm64e` and `arm64e.x1` (zig's own linker accepts arm64
 # for those), rewritten for ld64.lld to `arm64` (the same symbols: arm64
 # processes on Apple silicon bind to the very same libSystem). Into
-# $DARWIN64_TARGET_DIR/sdk, with zig's SDKSettings.json (the SDK version).
+# $DARWIN64_CACHE_DIR/sdk-<hash of zig's stubs>, with zig's SDKSettings.json
+# (the SDK version). Prints that directory.
 _darwin64_sdk() {
-    local from="$1" to="$DARWIN64_TARGET_DIR/sdk"
-    [ "$to/libSystem.tbd" -nt "$from/libSystem.tbd" ] && return 0
-    mkdir -p "$to" && cp "$from/SDKSettings.json" "$to/" &&
-    "$DARWIN64_ZIG_VENV/bin/python" - "$from/libSystem.tbd" "$to/libSystem.tbd" <<'PY'
+    local from="$1" to
+    to="$DARWIN64_CACHE_DIR/sdk-$(cat "$from/libSystem.tbd" "$from/SDKSettings.json" | sha256sum | cut -c1-16)"
+    printf '%s\n' "$to"
+    [ -f "$to/libSystem.tbd" ] && return 0
+    mkdir -p "$to" && cp "$from/SDKSettings.json" "$to/" || return 1
+    "$DARWIN64_ZIG_VENV/bin/python" - "$from/libSystem.tbd" "$to/libSystem.tbd" <<'PY' || return 1
 import re, sys
 text = open(sys.argv[1]).read()
 text = re.sub(r",\s*arm64e\.x1-[a-z]+", "", text)
 text = re.sub(r"arm64e\.x1-[a-z]+,\s*", "", text)
 assert "arm64e.x1" not in text, "an arm64e.x1 target left"
 text = text.replace("arm64e-", "arm64-")
-open(sys.argv[2], "w").write(text)
+open(sys.argv[2] + ".tmp", "w").write(text)
 PY
+    mv "$to/libSystem.tbd.tmp" "$to/libSystem.tbd"
 }
 
 _darwin64_env() {
@@ -96,8 +104,8 @@ _darwin64_env() {
     export MACOSX_DEPLOYMENT_TARGET="${DARWIN64_MIN_MACOS[x86_64-apple-darwin]}"
     export DARWIN64_MIN_MACOS_X86_64="${DARWIN64_MIN_MACOS[x86_64-apple-darwin]}"
     export DARWIN64_MIN_MACOS_ARM64="${DARWIN64_MIN_MACOS[aarch64-apple-darwin]}"
-    export DARWIN64_ZIG="$zigdir/zig" DARWIN64_SDK="$DARWIN64_TARGET_DIR/sdk" DARWIN64_INSTALL_NAME
-    _darwin64_sdk "$zigdir/lib/libc/darwin" || return 1
+    DARWIN64_SDK=$(_darwin64_sdk "$zigdir/lib/libc/darwin") || return 1
+    export DARWIN64_ZIG="$zigdir/zig" DARWIN64_SDK DARWIN64_INSTALL_NAME
     # rustc asks xcrun for the SDK unless SDKROOT names one (it only warns).
     export SDKROOT="$DARWIN64_SDK"
     DARWIN64_LLD=$(_darwin64_lld) || return 1
@@ -128,7 +136,7 @@ darwin64_cargo() (
     _darwin64_env || exit 1
     local targets=() t
     for t in "${DARWIN64_TRIPLES[@]}"; do targets+=(--target "$t"); done
-    nice /usr/bin/cargo "$1" -Zbuild-std=std,panic_unwind -Zbuild-std-features=panic-unwind \
+    nice /usr/bin/cargo "$1" -Zbuild-std=std,panic_unwind -Zbuild-std-features=panic-unwind -Zchecksum-freshness \
         "${targets[@]}" --target-dir "$DARWIN64_CARGO_DIR" "${@:2}"
 )
 
@@ -138,10 +146,15 @@ darwin64_cargo() (
 darwin64_build() {
     local triple lipo slices=()
     lipo=$(_darwin64_llvm llvm-lipo) || return 1
-    darwin64_cargo build --release --lib || return 1
     for triple in "${DARWIN64_TRIPLES[@]}"; do
         slices+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator.dylib")
     done
+    mkdir -p "$DARWIN64_TARGET_DIR" "$DARWIN64_CACHE_DIR"
     rm -f "$DARWIN64_DYLIB"
-    "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB"
+    # Build and merge under the shared cache's lock: another clone's build
+    # cannot replace the slices in between.
+    (
+        flock 9
+        darwin64_cargo build --release --lib && "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB"
+    ) 9>"$DARWIN64_LOCK"
 }

@@ -125,7 +125,7 @@ _stickslip_ensure_darwin64() {
             _stickslip_apt_install lld-19 || return 1
         fi
     fi
-    venv="${STICKSLIP_ZIG_VENV:-${CARGO_TARGET_DIR:-$root/target}/darwin64/zig-venv}"
+    venv="${STICKSLIP_ZIG_VENV:-$STICKSLIP_CACHE_DIR/darwin64/zig-venv}"
     req="$root/scripts/darwin64-requirements.txt"
     py="${PYTHON:-python3}"
     want=$(sha256sum "$req" | cut -d' ' -f1) || return 1
@@ -203,6 +203,13 @@ _stickslip_env_main() {
     local root venv
     root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd) || return 1
     export STICKSLIP_ROOT="$root"
+    # The machine's build caches, outside every clone and shared by them
+    # (docs/verification.md, "Caches"): the cross builds' cargo target dir,
+    # the wine prefix, the darwin64 toolchain. Each is invalidated by content
+    # (scripts/win64.sh, scripts/darwin64.sh say how); deleting the directory
+    # is always safe.
+    export STICKSLIP_CACHE_DIR="${STICKSLIP_CACHE_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/stickslip}"
+    mkdir -p "$STICKSLIP_CACHE_DIR" || return 1
     venv="${STICKSLIP_VENV:-$root/.venv}"
 
     # cargo from rustup when the caller's PATH lacks it (e.g. a bare CI shell).

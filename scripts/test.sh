@@ -1,6 +1,11 @@
 #!/usr/bin/env bash
 # scripts/test.sh -- THE test command (CI runs it through .ci/run).
 #
+#   bash scripts/test.sh [--quick] [pytest args...]
+#
+#   0. formatters and linters, each a stage that fails the run:
+#      cargo fmt --check, cargo clippy --all-targets -- -D warnings (the main
+#      crate and tests/win64), ruff check, ruff format --check
 #   1. cargo test --release --all-targets --no-fail-fast  (release: physics tests are heavy)
 #   2. cargo test --release --doc           (doc tests; only if there is a lib target)
 #   3. FMU packaging hook: scripts/build_fmu.sh, if it exists: linux64, win64
@@ -20,7 +25,21 @@
 # adds 1 to "failed").
 #
 # Extra arguments are passed to pytest, e.g. `scripts/test.sh --runslow`.
+#
+# --quick: the inner loop of a change to the engine or the Python package
+# (README, "Tests"): stages 0-2, the linux64 FMU only (no cross builds, no
+# wine) and the Python tests that need neither the win64/darwin64 binaries
+# nor a second master or a Dask cluster (pytest -m "not full"; the marker
+# `full` is set in tests/python/conftest.py). The full run (no --quick) is
+# what CI runs and what a change to the FMI layer, the build scripts, the
+# platforms or the sweep must pass.
 set -euo pipefail
+
+QUICK=0
+if [ "${1:-}" = "--quick" ]; then
+    QUICK=1
+    shift
+fi
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
@@ -72,6 +91,39 @@ run_libtest_stage() {
     return 0
 }
 
+# run_check_stage NAME -- COMMAND args...   (a formatter or linter: its exit status decides)
+run_check_stage() {
+    local name="$1" rc start=$SECONDS
+    shift 2
+    banner "$name: $*"
+    set +e
+    "$@"
+    rc=$?
+    set -e
+    if [ "$rc" -eq 0 ]; then
+        SUMMARY+=("$name: ok ($((SECONDS - start)) s)")
+        TOT_PASS=$((TOT_PASS + 1))
+    else
+        SUMMARY+=("$name: FAILED (exit $rc, $((SECONDS - start)) s)")
+        FAILED_STAGES+=("$name")
+        TOT_FAIL=$((TOT_FAIL + 1))
+    fi
+    return 0
+}
+
+# ---- 0. formatters and linters -------------------------------------------------
+# rustfmt.toml and pyproject.toml's [tool.ruff] hold the choices; clippy's
+# warnings are errors. tests/win64 is a package of its own (its own manifest).
+run_check_stage "rustfmt" -- cargo fmt --check
+run_check_stage "rustfmt-win64" -- cargo fmt --manifest-path tests/win64/Cargo.toml --check
+run_check_stage "clippy" -- cargo clippy --release --all-targets --quiet -- -D warnings
+if [ "$QUICK" -eq 0 ]; then
+    run_check_stage "clippy-win64" -- cargo clippy --release --quiet --manifest-path tests/win64/Cargo.toml \
+        --target-dir "${CARGO_TARGET_DIR:-$ROOT/target}" --all-targets -- -D warnings
+fi
+run_check_stage "ruff-check" -- ruff check --no-cache .
+run_check_stage "ruff-format" -- ruff format --no-cache --check .
+
 # ---- 1. Rust tests ----------------------------------------------------------
 run_cargo_stage "cargo-test" "$LOGDIR/cargo-test.log" -- test --release --all-targets --no-fail-fast
 
@@ -87,10 +139,12 @@ fi
 # tests/python/test_darwin64.py (stage 5) checks the macOS dylib. A developer
 # may leave it out with STICKSLIP_DARWIN64=0 (those tests then skip, or fail
 # under CI=true).
+build_fmu_args=()
+[ "$QUICK" -eq 1 ] && build_fmu_args=(--platforms linux64)
 if [ -f scripts/build_fmu.sh ]; then
-    banner "build-fmu: bash scripts/build_fmu.sh (STICKSLIP_DARWIN64=${STICKSLIP_DARWIN64:-1})"
+    banner "build-fmu: bash scripts/build_fmu.sh ${build_fmu_args[*]} (STICKSLIP_DARWIN64=${STICKSLIP_DARWIN64:-1})"
     fmu_start=$SECONDS
-    if bash scripts/build_fmu.sh; then
+    if bash scripts/build_fmu.sh ${build_fmu_args[@]+"${build_fmu_args[@]}"}; then
         SUMMARY+=("build-fmu: ok ($((SECONDS - fmu_start)) s)")
     else
         SUMMARY+=("build-fmu: FAILED")
@@ -106,7 +160,7 @@ fi
 # .fmu (b), then restores on Linux the state win64 serialized (c); see
 # tests/win64/Cargo.toml. Also the main crate's unit tests, compiled for Windows,
 # under wine. Missing wine or a missing win64 binary fail the stage.
-if [ -d tests/win64 ]; then
+if [ -d tests/win64 ] && [ "$QUICK" -eq 0 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
     export STICKSLIP_FMU="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator.fmu"
@@ -141,7 +195,9 @@ if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -nam
     banner "pytest tests/python $*"
     pytest_start=$SECONDS
     set +e
-    python -m pytest tests/python -ra --junitxml="$LOGDIR/pytest.xml" "$@" 2>&1 | tee "$LOGDIR/pytest.log"
+    pytest_args=(-ra --durations=15)
+    [ "$QUICK" -eq 1 ] && pytest_args+=(-m "not full")
+    python -m pytest tests/python "${pytest_args[@]}" --junitxml="$LOGDIR/pytest.xml" "$@" 2>&1 | tee "$LOGDIR/pytest.log"
     rc=${PIPESTATUS[0]}
     set -e
     counts="0 0 0 0"
