@@ -1,0 +1,204 @@
+"""The fit as a least-squares problem: parameters in a normalized space, residuals of every
+sample of every experiment, runs on Dask or in this process.
+
+* :class:`Transform`: each estimated parameter θ_j maps to z_j in [0, 1] over its bounds,
+  linearly or (``scale = "log"``) in log θ. Where μ_k[i] and μ_s[i] of one joint are both
+  estimated, μ_s is reached through the excess Δμ = μ_s − μ_k ≥ 0 (z over
+  [max(0, low_s − high_k), high_s − low_k]), so every point the optimizer tries satisfies the
+  FMU's μ_s ≥ μ_k and none is refused for it.
+* :class:`Evaluator`: runs (:func:`stickslip.fit.runner.run`) on a Dask cluster, the FMU's
+  bytes sent to every worker by the sweep's worker plugin, the experiments' data scattered
+  once; or in this process (``client=None``).
+* :class:`Problem`: residuals (model − measured)/σ over all samples; a sample the run did not
+  reach (the FMU refused the point or discarded a step) counts as :data:`PENALTY`, so the
+  optimizer's trust region shrinks away from it instead of the fit ending.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from .runner import Payload, RunResult, Segments, run
+
+PENALTY = 1e3  # normalized residual of a sample a run did not reach
+
+
+class Transform:
+    """θ (the FMU's values) <-> z in [0, 1]^p (the optimizer's variables)."""
+
+    def __init__(self, estimates):
+        self.estimates = list(estimates)
+        names = [e.name for e in self.estimates]
+        self.excess = {}  # index of mu_s[i] -> index of mu_k[i]
+        for j, name in enumerate(names):
+            if name.startswith("mu_s[") and name.replace("mu_s[", "mu_k[") in names:
+                self.excess[j] = names.index(name.replace("mu_s[", "mu_k["))
+        self.low = np.empty(len(names))
+        self.span = np.empty(len(names))
+        for j, e in enumerate(self.estimates):
+            if j in self.excess:
+                k = self.estimates[self.excess[j]]
+                lo, hi = max(0.0, e.low - k.high), e.high - k.low
+                self.low[j], self.span[j] = lo, hi - lo
+            elif e.scale == "log":
+                self.low[j], self.span[j] = math.log(e.low), math.log(e.high) - math.log(e.low)
+            else:
+                self.low[j], self.span[j] = e.low, e.high - e.low
+
+    def theta(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=np.float64)
+        u = self.low + z * self.span
+        theta = np.array(
+            [
+                math.exp(u[j]) if e.scale == "log" and j not in self.excess else u[j]
+                for j, e in enumerate(self.estimates)
+            ]
+        )
+        for j, k in self.excess.items():
+            theta[j] = theta[k] + u[j]
+        return theta
+
+    def z(self, theta) -> np.ndarray:
+        theta = np.asarray(theta, dtype=np.float64)
+        u = np.array(
+            [
+                math.log(theta[j]) if e.scale == "log" and j not in self.excess else theta[j]
+                for j, e in enumerate(self.estimates)
+            ]
+        )
+        for j, k in self.excess.items():
+            u[j] = theta[j] - theta[k]
+        return np.clip((u - self.low) / self.span, 0.0, 1.0)
+
+    def jacobian(self, z) -> np.ndarray:
+        """dθ/dz at z (p × p)."""
+        theta = self.theta(z)
+        d = np.zeros((len(theta), len(theta)))
+        for j, e in enumerate(self.estimates):
+            d[j, j] = self.span[j] * (theta[j] if e.scale == "log" and j not in self.excess else 1.0)
+        for j, k in self.excess.items():
+            d[j, k] = d[k, k]
+        return d
+
+    def named(self, theta) -> dict:
+        return {e.name: float(v) for e, v in zip(self.estimates, theta, strict=True)}
+
+
+class Evaluator:
+    """Runs experiments for parameter sets, on a Dask client or in this process."""
+
+    def __init__(self, fmu_data: bytes, digest: str, payloads: list, client=None):
+        self.digest = digest
+        self.client = client
+        self.fmu_data = fmu_data
+        self.payloads = payloads
+        self.runs = 0
+        self._lock = threading.Lock()
+        if client is not None:
+            from ..sweep import FmuPlugin
+
+            client.register_plugin(FmuPlugin(fmu_data, digest))
+            self.remote = client.scatter(payloads, broadcast=True)
+
+    def map(self, jobs: list) -> list:
+        """jobs: (experiment index, parameters, Segments or None) -> RunResults, in order."""
+        with self._lock:
+            self.runs += len(jobs)
+        if self.client is None:
+            return [run(self.digest, self.payloads[i], p, s, fmu_data=self.fmu_data) for i, p, s in jobs]
+        futures = [self.client.submit(run, self.digest, self.remote[i], p, s, pure=False) for i, p, s in jobs]
+        return self.client.gather(futures)
+
+
+class Problem:
+    """Residuals of a fit for points z, in single or multiple shooting."""
+
+    def __init__(self, spec, evaluator: Evaluator, segments: list | None):
+        self.spec = spec
+        self.transform = Transform(spec.estimates)
+        self.evaluator = evaluator
+        self.segments = segments  # per experiment: Segments, or None for single shooting
+        self.measured = [np.column_stack([c.values for c in e.channels]) for e in spec.experiments]
+        self.sigma = [np.array([c.sigma for c in e.channels]) for e in spec.experiments]
+        self.m = sum(x.size for x in self.measured)
+        self.failures = []  # (parameters, experiment, status, message) of runs that did not finish
+        self._lock = threading.Lock()
+
+    def parameters(self, z) -> dict:
+        values = self.transform.named(self.transform.theta(z))
+        if self.spec.options["error_tolerance"] is not None:
+            values["error_tolerance"] = self.spec.options["error_tolerance"]
+        return values
+
+    def runs(self, points: list, shooting: str) -> list:
+        """For each z in points: the RunResults of every experiment."""
+        jobs = []
+        for z in points:
+            p = self.parameters(z)
+            for i in range(len(self.spec.experiments)):
+                jobs.append((i, p, self.segments[i] if shooting == "multiple" else None))
+        results = self.evaluator.map(jobs)
+        n = len(self.spec.experiments)
+        return [results[k * n : (k + 1) * n] for k in range(len(points))]
+
+    def residual(self, results: list) -> np.ndarray:
+        """(model − measured)/σ of every sample, PENALTY where the run did not reach it."""
+        parts = []
+        for res, meas, sigma, e in zip(results, self.measured, self.sigma, self.spec.experiments, strict=True):
+            r = (res.values - meas) / sigma
+            r[~np.isfinite(r)] = PENALTY
+            parts.append(r.ravel(order="F"))
+            if res.status != "ok":
+                with self._lock:
+                    self.failures.append({"experiment": e.name, "status": res.status, "message": res.message})
+        return np.concatenate(parts)
+
+    def residuals(self, points: list, shooting: str) -> list:
+        return [self.residual(r) for r in self.runs(points, shooting)]
+
+    @staticmethod
+    def failed(results: list) -> bool:
+        return any(r.status != "ok" for r in results)
+
+
+def measured_segments(experiment, segment: float, flexible: list) -> Segments | None:
+    """Multiple-shooting segments of about ``segment`` seconds for an experiment whose
+    flexible joints' q are all measured (else None): start states from a Savitzky-Golay fit
+    of the measured q around each segment's first sample (value and slope)."""
+    from scipy.signal import savgol_filter
+
+    channels = {c.output: c for c in experiment.channels}
+    if not flexible or any(f"q[{i}]" not in channels for i in flexible):
+        return None
+    t = experiment.time
+    dt = float(np.median(np.diff(t)))
+    per = max(2, round(segment / dt))
+    starts = np.arange(0, len(t) - 1, per)
+    if len(starts) > 1 and len(t) - 1 - starts[-1] < per // 2:
+        starts = starts[:-1]  # no stub of a segment at the end
+    window = min(len(t) - (1 - len(t) % 2), max(5, 2 * round(0.004 / dt) + 1))  # about 4 ms each side
+    q0 = np.empty((len(starts), len(flexible)))
+    qd0 = np.empty_like(q0)
+    for j, i in enumerate(flexible):
+        y = channels[f"q[{i}]"].values
+        smooth = savgol_filter(y, window, 3, mode="interp")
+        slope = savgol_filter(y, window, 3, deriv=1, delta=dt, mode="interp")
+        q0[:, j], qd0[:, j] = smooth[starts], slope[starts]
+    return Segments(starts, list(flexible), q0, qd0)
+
+
+def payload_of(experiment) -> Payload:
+    return Payload(
+        experiment.name,
+        experiment.time,
+        experiment.motion,
+        experiment.torques,
+        [c.output for c in experiment.channels],
+        dict(experiment.parameters),
+    )
+
+
+__all__ = ["PENALTY", "Evaluator", "Problem", "RunResult", "Transform", "measured_segments", "payload_of"]

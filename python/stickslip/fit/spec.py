@@ -1,0 +1,442 @@
+"""The fit SPEC (TOML or a dict) and its measured data, checked against the FMU before anything runs.
+
+::
+
+    fmu = "target/fmu/StickSlipManipulator.fmu"   # the FMU whose parameters are fitted
+    [[experiment]]                                # one or more measured runs, fitted together
+    name = "run1"                                 # optional (default: the data file's stem)
+    data = "run1.csv"                             # relative to the spec; a time column and measured columns
+    time = "t"                                    # the time column, s, strictly increasing
+    inputs = { "q_star[1]" = "motor1", "q_star[3]" = "motor3" }   # FMU inputs from columns (q_star[i],
+                                                  # or tau_m[i] of a motor drive), rates by a cubic spline
+                                                  # (not-a-knot); joints not named hold their start
+    # motion = "motion.toml"                      # instead of inputs: a motion file (docs/motion.md)
+    parameters = { "m[3]" = 8.0 }                 # known values for this experiment
+    [experiment.measured]                         # FMU output <- column, with the measurement's noise
+    "q[1]" = { column = "link1", sigma = 2e-6 }
+    [estimate]                                    # tunable FMU parameters to estimate
+    "mu_k[1]" = { initial = 0.15, bounds = [0.05, 0.4] }
+    "k[3]" = { initial = 8e5, bounds = [1e5, 5e6], scale = "log" }
+    [options]
+    starts = 8             # the initial point, the equation-error estimate, and a seeded Latin hypercube
+    seed = 1
+    loss = "linear"        # or "soft_l1", "huber", "cauchy" (scipy.optimize.least_squares)
+    f_scale = 1.0          # the robust loss's scale, in normalized residuals
+    absolute_sigma = false # false: the sigmas are relative, their scale is estimated from the residuals
+    shooting = "auto"      # "single", "multiple" (segments restarted from the measured state) or "auto"
+    segment = 0.1          # s, multiple shooting's segment length
+    drop_nan = false       # true: rows with NaN samples are dropped (named in the report), else refused
+    error_tolerance = 1e-6 # optional: the FMU's error_tolerance during the fit (else its start value)
+
+The FMU is stepped from sample to sample of each experiment (variable communication steps),
+so every measured sample is compared with the FMU's output at exactly its time.
+
+Every problem is a :class:`FitSpecError` naming the field: the CLI prints it as one line and
+exits with status 2, before any output is written.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..fmu import DEFAULT_FMU
+from ..motion import MotionError, is_finite_number, load_motion_for
+
+TOP_KEYS = ("fmu", "experiment", "estimate", "options")
+EXPERIMENT_KEYS = ("name", "data", "time", "inputs", "motion", "parameters", "measured")
+ESTIMATE_KEYS = ("initial", "bounds", "scale")
+LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
+SHOOTING = ("auto", "single", "multiple")
+OPTION_DEFAULTS = {
+    "starts": 1,
+    "seed": 1,
+    "loss": "linear",
+    "f_scale": 1.0,
+    "absolute_sigma": False,
+    "shooting": "auto",
+    "segment": 0.1,
+    "drop_nan": False,
+    "error_tolerance": None,
+    "max_evaluations": 200,
+    "diff_step": 1e-3,
+}
+
+
+class FitSpecError(ValueError):
+    """A fit SPEC or data file that cannot be used; the message names the field and the problem."""
+
+
+@dataclass
+class Channel:
+    """One measured channel: the FMU output, the data column, the noise's standard deviation."""
+
+    output: str
+    column: str
+    sigma: float
+    values: np.ndarray = field(repr=False, default=None)
+
+
+@dataclass
+class Experiment:
+    """One measured run: times, inputs (a motion callable ``motion(t, step)``), known parameters
+    and the measured channels."""
+
+    name: str
+    data_path: Path
+    time: np.ndarray
+    motion: object  # motion(t, step) -> (q*, q*', q*'') over the joints
+    torques: object  # a Torques of the motor-drive inputs tau_m[i], or None
+    inputs: dict  # FMU input -> column ({} when a motion file gives them)
+    parameters: dict
+    channels: list
+    dropped_rows: list = field(default_factory=list)
+    motion_file: str | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return sum(len(c.values) for c in self.channels)
+
+
+@dataclass
+class Estimate:
+    """A tunable parameter to estimate: its initial value, bounds and scale ("linear" or "log")."""
+
+    name: str
+    initial: float
+    low: float
+    high: float
+    scale: str = "linear"
+
+
+@dataclass
+class FitSpec:
+    fmu: Path
+    experiments: list
+    estimates: list
+    options: dict
+    source: str
+    model_description: object = field(repr=False, default=None)
+
+    @property
+    def names(self) -> list:
+        return [e.name for e in self.estimates]
+
+
+def load(spec, base_dir=None) -> FitSpec:
+    """The checked FitSpec of a TOML file path or a dict (paths in a dict are relative to
+    ``base_dir``, default the current directory)."""
+    if isinstance(spec, dict):
+        doc, source, base = spec, "fit spec", Path(base_dir or ".")
+    else:
+        path = Path(spec)
+        try:
+            doc = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise FitSpecError(f"{path}: no such file") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+            raise FitSpecError(f"{path}: not valid TOML: {e}") from None
+        source, base = str(path), path.resolve().parent
+    return _checked(doc, source, base)
+
+
+def _unknown(keys, allowed, where: str) -> None:
+    for k in keys:
+        if k not in allowed:
+            close = difflib.get_close_matches(k, allowed, n=1)
+            hint = f" (did you mean `{close[0]}`?)" if close else f" (known: {', '.join(allowed)})"
+            raise FitSpecError(f"{where}: unknown key `{k}`{hint}")
+
+
+def _table(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise FitSpecError(f"{where}: must be a table, e.g. {where.split('.')[-1]} = {{ ... }}")
+    return value
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not is_finite_number(value):
+        raise FitSpecError(f"{where} = {value!r}: must be a finite number")
+    return float(value)
+
+
+def _checked(doc: dict, source: str, base: Path) -> FitSpec:
+    from fmpy import read_model_description
+
+    _unknown(doc, TOP_KEYS, source)
+    fmu = Path(doc.get("fmu", DEFAULT_FMU))
+    if not fmu.is_absolute():
+        fmu = base / fmu
+    if not fmu.is_file():
+        raise FitSpecError(f"{source}: fmu = {str(fmu)!r}: no such file (build it with bash scripts/build_fmu.sh)")
+    try:
+        md = read_model_description(str(fmu))
+    except Exception as e:  # noqa: BLE001 -- any unreadable FMU is one line
+        raise FitSpecError(f"{source}: fmu = {str(fmu)!r}: not a readable FMU: {e}") from None
+    variables = {v.name: v for v in md.modelVariables}
+    options = _options(doc.get("options", {}), f"{source}: [options]")
+    experiments = doc.get("experiment")
+    if not experiments:
+        raise FitSpecError(f"{source}: no [[experiment]]: at least one measured run is needed")
+    if isinstance(experiments, dict):
+        experiments = [experiments]
+    if not isinstance(experiments, list):
+        raise FitSpecError(f"{source}: experiment must be an array of tables ([[experiment]])")
+    exps = [
+        _experiment(_table(e, f"{source}: experiment {k + 1}"), k, source, base, md, variables, options)
+        for k, e in enumerate(experiments)
+    ]
+    names = [e.name for e in exps]
+    if len(set(names)) != len(names):
+        raise FitSpecError(f"{source}: experiment names {names} are not unique (give each a `name`)")
+    estimates = _estimates(_table(doc.get("estimate", {}), f"{source}: [estimate]"), source, variables)
+    for e in exps:
+        clash = sorted(set(e.parameters) & {x.name for x in estimates})
+        if clash:
+            raise FitSpecError(f"{source}: experiment {e.name!r}: parameters {clash} are also estimated")
+    return FitSpec(fmu, exps, estimates, options, source, md)
+
+
+def _options(raw, where: str) -> dict:
+    options = dict(OPTION_DEFAULTS)
+    _unknown(_table(raw, where), list(OPTION_DEFAULTS), where)
+    options.update(raw)
+    for key in ("starts", "seed", "max_evaluations"):
+        v = options[key]
+        if isinstance(v, bool) or not isinstance(v, int) or v < (0 if key == "seed" else 1):
+            raise FitSpecError(f"{where}: {key} = {v!r}: must be an integer >= {0 if key == 'seed' else 1}")
+    if options["loss"] not in LOSSES:
+        raise FitSpecError(f"{where}: loss = {options['loss']!r}: one of {', '.join(LOSSES)}")
+    if options["shooting"] not in SHOOTING:
+        raise FitSpecError(f"{where}: shooting = {options['shooting']!r}: one of {', '.join(SHOOTING)}")
+    for key in ("f_scale", "segment", "diff_step"):
+        if _number(options[key], f"{where}: {key}") <= 0:
+            raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be > 0")
+        options[key] = float(options[key])
+    for key in ("absolute_sigma", "drop_nan"):
+        if not isinstance(options[key], bool):
+            raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
+    if options["error_tolerance"] is not None:
+        options["error_tolerance"] = _number(options["error_tolerance"], f"{where}: error_tolerance")
+    return options
+
+
+def _tunable(name: str, variables: dict, where: str):
+    v = variables.get(name)
+    if v is None:
+        close = difflib.get_close_matches(name, list(variables), n=3)
+        raise FitSpecError(f"{where}: `{name}` is not a variable of the FMU" + (f" (close: {close})" if close else ""))
+    if v.causality != "parameter" or v.variability != "tunable" or v.type != "Real":
+        raise FitSpecError(
+            f"{where}: `{name}` is not a tunable Real parameter of the FMU "
+            f"(causality {v.causality}, variability {v.variability}, type {v.type})"
+        )
+    return v
+
+
+def _in_range(v, value: float, where: str) -> None:
+    lo = float(v.min) if v.min is not None else -math.inf
+    hi = float(v.max) if v.max is not None else math.inf
+    if not lo <= value <= hi:
+        raise FitSpecError(f"{where} = {value:g}: outside the FMU's range [{lo:g}, {hi:g}] of {v.name}")
+
+
+def _estimates(raw: dict, source: str, variables: dict) -> list:
+    if not raw:
+        raise FitSpecError(f"{source}: [estimate] is empty: name at least one parameter to estimate")
+    out = []
+    for name, entry in raw.items():
+        where = f"{source}: estimate.{name!r}"
+        v = _tunable(name, variables, where)
+        entry = _table(entry, where)
+        _unknown(entry, ESTIMATE_KEYS, where)
+        if "initial" not in entry:
+            raise FitSpecError(f"{where}: no `initial` value (e.g. {{ initial = 0.15, bounds = [0.05, 0.4] }})")
+        initial = _number(entry["initial"], f"{where}.initial")
+        bounds = entry.get("bounds")
+        if bounds is None:
+            bounds = [v.min if v.min is not None else -math.inf, v.max if v.max is not None else math.inf]
+        if not isinstance(bounds, list) or len(bounds) != 2:
+            raise FitSpecError(f"{where}.bounds = {bounds!r}: must be [low, high]")
+        low, high = (float(b) for b in bounds)
+        if math.isnan(low) or math.isnan(high):
+            raise FitSpecError(f"{where}.bounds = {bounds!r}: must be numbers")
+        if not low < high:
+            raise FitSpecError(f"{where}.bounds = [{low:g}, {high:g}]: low must be below high")
+        _in_range(v, low, f"{where}.bounds[0]") if math.isfinite(low) else None
+        _in_range(v, high, f"{where}.bounds[1]") if math.isfinite(high) else None
+        if not low <= initial <= high:
+            raise FitSpecError(f"{where}.initial = {initial:g}: outside its bounds [{low:g}, {high:g}]")
+        scale = entry.get("scale", "linear")
+        if scale not in ("linear", "log"):
+            raise FitSpecError(f'{where}.scale = {scale!r}: "linear" or "log"')
+        if scale == "log" and not low > 0:
+            raise FitSpecError(f'{where}: scale = "log" needs bounds above 0, not [{low:g}, {high:g}]')
+        if not (math.isfinite(low) and math.isfinite(high)):
+            raise FitSpecError(f"{where}.bounds: need finite bounds (the multi-start draws between them)")
+        out.append(Estimate(name, initial, low, high, scale))
+    return out
+
+
+def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict, options: dict) -> Experiment:
+    where = f"{source}: experiment {k + 1}"
+    _unknown(raw, EXPERIMENT_KEYS, where)
+    if "data" not in raw:
+        raise FitSpecError(f"{where}: no `data` (the CSV file of the measured run)")
+    data_path = Path(raw["data"])
+    if not data_path.is_absolute():
+        data_path = base / data_path
+    name = str(raw.get("name", data_path.stem))
+    where = f"{source}: experiment {name!r}"
+    time_column = raw.get("time", "t")
+    inputs = _table(raw.get("inputs", {}), f"{where}: inputs")
+    measured = _table(raw.get("measured", {}), f"{where}: measured")
+    if not measured:
+        raise FitSpecError(f"{where}: [experiment.measured] is empty: name the FMU outputs that were measured")
+    if inputs and "motion" in raw:
+        raise FitSpecError(f"{where}: give either `inputs` (columns) or `motion` (a motion file), not both")
+    parameters = {}
+    for pname, value in _table(raw.get("parameters", {}), f"{where}: parameters").items():
+        v = variables.get(pname)
+        if v is None or v.causality != "parameter":
+            close = difflib.get_close_matches(pname, list(variables), n=3)
+            raise FitSpecError(
+                f"{where}: parameters.{pname!r}: not a parameter of the FMU" + (f" (close: {close})" if close else "")
+            )
+        parameters[pname] = _number(value, f"{where}: parameters.{pname!r}")
+        _in_range(v, parameters[pname], f"{where}: parameters.{pname!r}")
+    table = _read_csv(data_path, where)
+    needed = {time_column: "the time column"}
+    needed.update({col: f"input {inp}" for inp, col in inputs.items()})
+    channels = []
+    for output, entry in measured.items():
+        v = variables.get(output)
+        if v is None or v.causality != "output":
+            outputs = [x.name for x in md.modelVariables if x.causality == "output"]
+            close = difflib.get_close_matches(output, outputs, n=3)
+            raise FitSpecError(
+                f"{where}: measured.{output!r}: not an output of the FMU" + (f" (close: {close})" if close else "")
+            )
+        entry = _table(entry, f"{where}: measured.{output!r}")
+        _unknown(entry, ("column", "sigma"), f"{where}: measured.{output!r}")
+        if "column" not in entry or "sigma" not in entry:
+            raise FitSpecError(
+                f'{where}: measured.{output!r}: needs `column` and `sigma`, e.g. {{ column = "link1", sigma = 1e-6 }}'
+            )
+        sigma = _number(entry["sigma"], f"{where}: measured.{output!r}.sigma")
+        if sigma <= 0:
+            raise FitSpecError(f"{where}: measured.{output!r}.sigma = {sigma:g}: must be > 0")
+        channels.append(Channel(output, str(entry["column"]), sigma))
+        needed[str(entry["column"])] = f"measured {output}"
+    for column, role in needed.items():
+        if column not in table:
+            close = difflib.get_close_matches(column, list(table), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (columns: {', '.join(table)})"
+            raise FitSpecError(f"{where}: {data_path.name} has no column {column!r} ({role}){hint}")
+    bad_rows = sorted({int(r) for col in needed for r in np.flatnonzero(~np.isfinite(table[col]))})
+    dropped = []
+    if bad_rows:
+        shown = ", ".join(str(r + 2) for r in bad_rows[:8]) + (" ..." if len(bad_rows) > 8 else "")
+        if not options["drop_nan"]:
+            raise FitSpecError(
+                f"{where}: {data_path.name} has NaN or missing samples in rows {shown} (line numbers, header = 1); "
+                "set [options] drop_nan = true to drop those rows"
+            )
+        keep = np.ones(len(table[time_column]), dtype=bool)
+        keep[bad_rows] = False
+        table = {c: v[keep] for c, v in table.items()}
+        dropped = [r + 2 for r in bad_rows]
+    t = table[time_column]
+    if len(t) < 2:
+        raise FitSpecError(
+            f"{where}: {data_path.name} has {len(t)} sample(s): an experiment needs at least two "
+            "(it must be longer than one communication step)"
+        )
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 3
+        raise FitSpecError(f"{where}: {data_path.name}: time {time_column!r} is not strictly increasing (line {row})")
+    if steps.min() < 1e-5 or steps.max() > 1.0:
+        raise FitSpecError(
+            f"{where}: {data_path.name}: sample intervals {steps.min():g}..{steps.max():g} s; the FMU's "
+            "communication step must lie in [1e-5, 1] s"
+        )
+    for c in channels:
+        c.values = table[c.column]
+    (motion, torques), motion_file = _motion(raw, inputs, table, t, md, where, base)
+    return Experiment(name, data_path, t, motion, torques, dict(inputs), parameters, channels, dropped, motion_file)
+
+
+def _read_csv(path: Path, where: str) -> dict:
+    """Columns of a CSV with a header row, as float arrays (empty fields and non-numbers: NaN)."""
+    import pandas as pd
+
+    try:
+        frame = pd.read_csv(path, skipinitialspace=True)
+    except FileNotFoundError:
+        raise FitSpecError(f"{where}: data = {str(path)!r}: no such file") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise FitSpecError(f"{where}: {path.name}: not a readable CSV: {e}") from None
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return {c: pd.to_numeric(frame[c], errors="coerce").to_numpy(dtype=np.float64) for c in frame.columns}
+
+
+def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path):
+    """The drive inputs: (``motion(t, step)`` -> (q*, q*', q*'') over the joints, a
+    :class:`Torques` of the motor torques or None) and the motion file's name (None for
+    columns)."""
+    from ..motion import SplineMotion, fmu_joints, motor_joints
+
+    joints, _ = fmu_joints(md)
+    motors = motor_joints(md)
+    if "motion" in raw:
+        path = Path(raw["motion"])
+        if not path.is_absolute():
+            path = base / path
+        try:
+            return (load_motion_for(path, md), None), str(path)
+        except (MotionError, OSError) as e:
+            raise FitSpecError(f"{where}: motion = {str(path)!r}: {e}") from None
+    if not inputs:
+        raise FitSpecError(f"{where}: no `inputs` and no `motion`: say how the drives were commanded")
+    start = {v.name: float(v.start or 0.0) for v in md.modelVariables if v.causality == "input"}
+    q = np.array([[start.get(f"q_star[{i}]", 0.0) for i in range(1, joints + 1)]] * len(t))
+    torque_names, torque_columns = [], []
+    for name, column in inputs.items():
+        m = re.fullmatch(r"(q_star|tau_m)\[(\d+)\]", name)
+        i = int(m.group(2)) if m else 0
+        if m and m.group(1) == "q_star" and 1 <= i <= joints:
+            q[:, i - 1] = table[column]
+        elif m and m.group(1) == "tau_m" and i in motors:
+            torque_names.append(name)
+            torque_columns.append(table[column])
+        else:
+            known = f"q_star[1..{joints}]" + (f", tau_m[{motors}]" if motors else "")
+            raise FitSpecError(
+                f"{where}: inputs.{name!r}: not a drive input of the FMU ({known}; rates follow from a cubic "
+                "spline through the column)"
+            )
+    torques = Torques(t, torque_names, np.column_stack(torque_columns)) if torque_names else None
+    return (SplineMotion(t, q, f"{where}: inputs"), torques), None
+
+
+class Torques:
+    """Motor torques tau_m[i] sampled at the experiment's times, joined by a not-a-knot cubic
+    spline; at a communication point the FMU gets the value and its first two derivatives
+    (fmi2SetRealInputDerivatives), so it holds the spline's Taylor polynomial across the step."""
+
+    def __init__(self, time, names: list, values):
+        from scipy.interpolate import CubicSpline
+
+        self.names = list(names)
+        self.spline = CubicSpline(np.asarray(time, dtype=np.float64), np.asarray(values, dtype=np.float64), axis=0)
+
+    def __call__(self, t: float):
+        """(values, first derivatives, second derivatives) at t, over ``names``."""
+        return self.spline(t), self.spline(t, 1), self.spline(t, 2)
