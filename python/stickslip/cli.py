@@ -1,4 +1,4 @@
-"""The ``stickslip`` command: ``simulate``, ``study``, ``sweep``, ``bench``."""
+"""The ``stickslip`` command: ``simulate``, ``study``, ``sweep``, ``bench``, ``fit``."""
 
 from __future__ import annotations
 
@@ -135,6 +135,11 @@ def main(argv=None) -> int:
     s = sub.add_parser("bench", help="variants per second of `sweep` on 1 and 2 workers")
     bench.add_arguments(s)
     s.set_defaults(main=bench.main)
+    from .fit import cli as fit_cli
+
+    s = sub.add_parser("fit", help="the FMU's parameters from measured runs, with standard errors")
+    fit_cli.add_arguments(s)
+    s.set_defaults(main=fit_cli.main)
     a = p.parse_args(argv)
     return a.main(a)
 

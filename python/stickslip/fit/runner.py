@@ -188,14 +188,14 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
         slave.exitInitializationMode()
     except FMICallException as e:
         raise _Refused(f"at initialization: {inst.reason(str(e))}") from None
-    out_vrs = _output_vrs(inst, tuple(payload.outputs))
-    values[first] = slave.getReal(out_vrs)
+    read = _reader(inst, tuple(payload.outputs))
+    values[first] = read(slave)
     filled = 1
     for k in range(first, last):
         h = float(t[k + 1] - t[k])
         _set_inputs(slave, inst, payload, float(t[k]), h)
         slave.doStep(currentCommunicationPoint=float(t[k]), communicationStepSize=h)
-        values[k + 1] = slave.getReal(out_vrs)
+        values[k + 1] = read(slave)
         filled += 1
     slave.terminate()
     # A span ends where the next begins: its last sample is the next span's first.
@@ -210,8 +210,27 @@ def _input_vrs(inst: _Instance, joints: int) -> list:
 
 
 @functools.cache
-def _output_vrs(inst: _Instance, outputs: tuple) -> list:
-    return [inst.vr(name) for name in outputs]
+def _reader(inst: _Instance, outputs: tuple):
+    """slave -> the outputs' values as floats (Real outputs by one getReal, Integer and
+    Boolean ones, such as stick[i], by theirs)."""
+    kinds = [inst.by_name[name].type for name in outputs]
+    if all(k == "Real" for k in kinds):
+        vrs = [inst.vr(name) for name in outputs]
+        return lambda slave: slave.getReal(vrs)
+    groups = {}
+    for j, (name, kind) in enumerate(zip(outputs, kinds, strict=True)):
+        groups.setdefault(kind, ([], []))
+        groups[kind][0].append(j)
+        groups[kind][1].append(inst.vr(name))
+    getters = {"Real": "getReal", "Integer": "getInteger", "Boolean": "getBoolean", "Enumeration": "getInteger"}
+
+    def read(slave):
+        row = np.empty(len(outputs))
+        for kind, (index, vrs) in groups.items():
+            row[index] = np.asarray(getattr(slave, getters[kind])(vrs), dtype=np.float64)
+        return row
+
+    return read
 
 
 def _set_inputs(slave, inst: _Instance, payload: Payload, t: float, step: float) -> None:

@@ -1,0 +1,211 @@
+"""What a fit writes into its DIR: fit.json, report.md, fit_<experiment>.png, correlation.png
+and fitted.toml. Everything is first written into a temporary directory beside DIR and moved
+into place at the end, so DIR never holds half a result."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .runner import Payload, run
+
+
+def write(result: dict, spec, out: Path) -> None:
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        public = {k: v for k, v in result.items() if not k.startswith("_")}
+        (tmp / "fit.json").write_text(json.dumps(_finite(public), indent=2, allow_nan=False, default=_jsonable) + "\n")
+        figures = _plots(result, spec, tmp)
+        (tmp / "fitted.toml").write_text(fitted_toml(result, spec))
+        (tmp / "report.md").write_text(report_md(result, spec, figures))
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _finite(x):
+    """NaN and infinities (a standard error of a parameter the data do not determine) as null."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _jsonable(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    raise TypeError(f"not JSON: {type(x).__name__}")
+
+
+def fitted_toml(result: dict, spec) -> str:
+    """The estimates as ``stickslip simulate --set`` values and as a [parameters] table."""
+    values = {name: p["value"] for name, p in result["parameters"].items()}
+    known = {}
+    for e in spec.experiments:
+        known.update(e.parameters)
+    sets = " ".join(f"--set '{n}={v:.12g}'" for n, v in {**known, **values}.items())
+    lines = [
+        "# The fitted parameters (stickslip fit). To rerun the fitted experiment:",
+        f"#   stickslip simulate --fmu {spec.fmu} {sets}",
+        "# (with the experiment's inputs as a motion file: --motion MOTION.toml).",
+        "# [parameters]: estimate with its standard error; [known]: the experiments' given values.",
+        "[parameters]",
+    ]
+    for name, p in result["parameters"].items():
+        se = p["std_error"]
+        lines.append(f'"{name}" = {p["value"]:.12g}  # ± {se:.3g} (1 standard error)')
+    if known:
+        lines.append("")
+        lines.append("[known]")
+        lines += [f'"{n}" = {v:.12g}' for n, v in known.items()]
+    return "\n".join(lines) + "\n"
+
+
+def report_md(result: dict, spec, figures: list) -> str:
+    m = result["method"]
+    lines = [
+        "# Fit report",
+        "",
+        f"FMU `{spec.fmu.name}`, {len(spec.experiments)} experiment(s), {m['samples']} samples; "
+        f"{m['shooting']} shooting, loss `{m['loss']}`; {result['n_evaluations']} FMU runs in "
+        f"{result['wall_s']:.1f} s; {'converged' if result['converged'] else 'NOT converged'}.",
+        "",
+        "| parameter | estimate | standard error | relative | initial | bounds | at bound |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, p in result["parameters"].items():
+        rel = p["std_error"] / abs(p["value"]) if p["value"] else math.inf
+        lines.append(
+            f"| `{name}` | {p['value']:.8g} | {p['std_error']:.3g} | {rel:.2e} | {p['initial']:.6g} | "
+            f"[{p['bounds'][0]:g}, {p['bounds'][1]:g}] | {'yes' if p['at_bound'] else 'no'} |"
+        )
+    lines += [
+        "",
+        f"Cost {result['cost']:.6g}; rms normalized residual {result['rms_normalized_residual']:.4g} "
+        "(1 when the residuals are the stated noise).",
+    ]
+    lines += ["", "Residual rms per channel: " + ", ".join(f"`{k}` {v:.3g}" for k, v in result["residual_rms"].items())]
+    lines += ["", "## Warnings", ""]
+    lines += [f"- {w}" for w in result["warnings"]] or ["none"]
+    names = result["correlation"]["names"]
+    lines += [
+        "",
+        "## Correlation",
+        "",
+        "| | " + " | ".join(f"`{n}`" for n in names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for n, row in zip(names, result["correlation"]["matrix"], strict=True):
+        lines.append(f"| `{n}` | " + " | ".join(f"{c:+.3f}" if c is not None else "–" for c in row) + " |")
+    lines += ["", "## Starts", "", "| start | cost (multiple shooting) | cost | status |", "|---|---|---|---|"]
+    for s in result["starts"]:
+        ms = f"{s['multiple_shooting_cost']:.6g}" if s["multiple_shooting_cost"] is not None else "–"
+        cost = f"{s['cost']:.6g}" if s["cost"] is not None else "–"
+        lines.append(f"| {s['origin']} | {ms} | {cost} | {s['status']} |")
+    lines += ["", "## Method", ""]
+    lines += [f"- {note}" for note in m["equation_error_stage"]]
+    lines.append(
+        f"- Jacobian: forward differences of step {m['diff_step']:g} (of each normalized range); with a 3x step "
+        f"the standard errors change by at most {100 * m['std_error_change_with_3x_step']:.1f} %."
+    )
+    lines.append(
+        f"- Noise scale σ̂² = {m['sigma_scale']:.4g} "
+        + ("(absolute sigmas: 1)" if m["absolute_sigma"] else "(from the residuals; the sigmas are relative)")
+    )
+    if result["failed_runs"]["count"]:
+        lines.append(f"- Runs the FMU refused or discarded during the fit: {result['failed_runs']['by_status']}")
+    lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
+    return "\n".join(lines) + "\n"
+
+
+def _plots(result: dict, spec, out: Path) -> list:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..fmu import content_hash
+
+    figures = []
+    data = Path(spec.fmu).read_bytes()
+    digest = content_hash(data)
+    values = {n: p["value"] for n, p in result["parameters"].items()}
+    md = spec.model_description
+    sticks = [v.name for v in md.modelVariables if v.name.startswith("stick[") and v.causality == "output"]
+    for e in spec.experiments:
+        outputs = [c.output for c in e.channels] + sticks
+        res = run(
+            digest, Payload(e.name, e.time, e.motion, e.torques, outputs, dict(e.parameters)), values, fmu_data=data
+        )
+        n = len(e.channels)
+        fig, axes = plt.subplots(2 * n, 1, figsize=(9, 2.6 * 2 * n), sharex=True, squeeze=False)
+        commands = np.array([e.motion(float(t), 0.0)[0] for t in e.time])
+        for k, c in enumerate(e.channels):
+            ax, axr = axes[2 * k, 0], axes[2 * k + 1, 0]
+            joint = c.output[c.output.index("[") :] if "[" in c.output else None
+            # q[i] is shown as the drive's lag q*_i − q_i, where stick-slip is visible.
+            lag = c.output.startswith("q[") and joint is not None
+            base = commands[:, int(joint[1:-1]) - 1] if lag else 0.0
+            ax.plot(e.time, base - c.values, ".", ms=1.5, color="0.4", label=f"measured `{c.column}`")
+            ax.plot(e.time, base - res.values[:, k], lw=1.0, color="C0", label=f"fitted {c.output}")
+            ax.set_ylabel(f"q_star{joint} − {c.output}" if lag else c.output)
+            ax.legend(loc="best", fontsize=8)
+            axr.plot(e.time, (res.values[:, k] - c.values) / c.sigma, lw=0.6, color="C3")
+            axr.axhline(0, color="0.5", lw=0.5)
+            axr.set_ylabel(f"({c.output} − meas.)/σ")
+            if joint and f"stick{joint}" in sticks:
+                held = res.values[:, n + sticks.index(f"stick{joint}")] > 0.5
+                for a in (ax, axr):
+                    a.fill_between(
+                        e.time,
+                        0,
+                        1,
+                        where=held,
+                        transform=a.get_xaxis_transform(),
+                        color="C1",
+                        alpha=0.25,
+                        lw=0,
+                        label="stuck (fitted run)",
+                    )
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.suptitle(f"experiment {e.name}: measured and fitted, residuals; stiction phases shaded")
+        fig.tight_layout()
+        name = f"fit_{_safe(e.name)}.png"
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+        figures.append(name)
+    names = result["correlation"]["names"]
+    corr = np.array([[np.nan if c is None else c for c in row] for row in result["correlation"]["matrix"]])
+    fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(names), 1.0 + 0.8 * len(names)))
+    im = ax.imshow(corr, vmin=-1, vmax=1, cmap="RdBu_r")
+    ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
+    ax.set_yticks(range(len(names)), names)
+    for a in range(len(names)):
+        for b in range(len(names)):
+            ax.text(b, a, f"{corr[a, b]:+.2f}", ha="center", va="center", fontsize=8)
+    fig.colorbar(im, ax=ax, shrink=0.8)
+    ax.set_title("correlation of the estimates")
+    fig.tight_layout()
+    fig.savefig(out / "correlation.png", dpi=110)
+    plt.close(fig)
+    figures.append("correlation.png")
+    return figures
+
+
+def _safe(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name)
