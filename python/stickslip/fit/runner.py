@@ -35,6 +35,29 @@ class Payload:
     outputs: list
     fixed: dict  # known parameters and settings, set in every run
 
+    def inputs(self) -> tuple:
+        """The drive inputs at every sample, computed once per process: (q*, q*', q*'') as one
+        C-contiguous (samples, 3 joints) array, and the torques' (value, rate, acceleration)
+        arrays (samples, torques) or None."""
+        table = self.__dict__.get("_inputs")
+        if table is None:
+            t = self.time
+            steps = np.append(np.diff(t), t[-1] - t[-2] if len(t) > 1 else 0.0)
+            drive = np.ascontiguousarray(
+                [
+                    np.concatenate([np.asarray(x, dtype=np.float64) for x in self.motion(float(tk), float(h))])
+                    for tk, h in zip(t, steps, strict=True)
+                ]
+            )
+            torques = None
+            if self.torques is not None:
+                torques = tuple(np.ascontiguousarray(np.atleast_2d(x).reshape(len(t), -1)) for x in self.torques(t))
+            table = self.__dict__["_inputs"] = (drive, torques)
+        return table
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_inputs"}
+
 
 @dataclass
 class Segments:
@@ -189,34 +212,37 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
     except FMICallException as e:
         raise _Refused(f"at initialization: {inst.reason(str(e))}") from None
     read = _reader(inst, tuple(payload.outputs))
-    values[first] = read(slave)
-    filled = 1
+    read(slave, values, first)
+    set_drive, set_torques = _input_setter(slave, inst, payload)
     for k in range(first, last):
-        h = float(t[k + 1] - t[k])
-        _set_inputs(slave, inst, payload, float(t[k]), h)
-        slave.doStep(currentCommunicationPoint=float(t[k]), communicationStepSize=h)
-        values[k + 1] = read(slave)
-        filled += 1
+        set_drive(k)
+        if set_torques is not None:
+            set_torques(k)
+        slave.doStep(currentCommunicationPoint=float(t[k]), communicationStepSize=float(t[k + 1] - t[k]))
+        read(slave, values, k + 1)
+    filled = last - first + 1
     slave.terminate()
     # A span ends where the next begins: its last sample is the next span's first.
     return filled - (0 if last == len(t) - 1 else 1)
 
 
 @functools.cache
-def _input_vrs(inst: _Instance, joints: int) -> list:
-    from ..motion import input_names
-
-    return [inst.vr(name) for name in input_names(joints)]
-
-
-@functools.cache
 def _reader(inst: _Instance, outputs: tuple):
-    """slave -> the outputs' values as floats (Real outputs by one getReal, Integer and
-    Boolean ones, such as stick[i], by theirs)."""
+    """read(slave, values, k): the outputs into row k of ``values`` (C-contiguous float64):
+    Real outputs by one fmi2GetReal straight into the row, Integer and Boolean ones (such as
+    stick[i]) by their getters."""
+    from ctypes import POINTER, c_double, c_uint, cast
+
     kinds = [inst.by_name[name].type for name in outputs]
     if all(k == "Real" for k in kinds):
-        vrs = [inst.vr(name) for name in outputs]
-        return lambda slave: slave.getReal(vrs)
+        n = len(outputs)
+        vrs = (c_uint * n)(*[inst.vr(name) for name in outputs])
+
+        def read_real(slave, values, k):
+            row = cast(values.ctypes.data + k * values.strides[0], POINTER(c_double))
+            slave.fmi2GetReal(slave.component, vrs, n, row)
+
+        return read_real
     groups = {}
     for j, (name, kind) in enumerate(zip(outputs, kinds, strict=True)):
         groups.setdefault(kind, ([], []))
@@ -224,21 +250,55 @@ def _reader(inst: _Instance, outputs: tuple):
         groups[kind][1].append(inst.vr(name))
     getters = {"Real": "getReal", "Integer": "getInteger", "Boolean": "getBoolean", "Enumeration": "getInteger"}
 
-    def read(slave):
-        row = np.empty(len(outputs))
+    def read(slave, values, k):
         for kind, (index, vrs) in groups.items():
-            row[index] = np.asarray(getattr(slave, getters[kind])(vrs), dtype=np.float64)
-        return row
+            values[k, index] = np.asarray(getattr(slave, getters[kind])(vrs), dtype=np.float64)
 
     return read
 
 
+def _input_setter(slave, inst: _Instance, payload: Payload) -> tuple:
+    """(set_drive(k), set_torques(k) or None): the inputs of sample k set from the payload's
+    precomputed table through the FMI functions directly (one call, no per-step lists)."""
+    from ctypes import POINTER, c_double, c_int, c_uint, cast
+
+    from ..motion import input_names
+
+    drive, torques = payload.inputs()
+    joints = drive.shape[1] // 3
+    vrs = (c_uint * (3 * joints))(*[inst.vr(name) for name in input_names(joints)])
+    row = drive.strides[0]
+    base = drive.ctypes.data
+    component = slave.component
+
+    def set_drive(k):
+        slave.fmi2SetReal(component, vrs, 3 * joints, cast(base + k * row, POINTER(c_double)))
+
+    set_torques = None
+    if torques is not None:
+        n = len(payload.torques.names)
+        tvrs = (c_uint * n)(*[inst.vr(name) for name in payload.torques.names])
+        orders = [(c_int * n)(*([o] * n)) for o in (1, 2)]
+
+        def set_torques(k):
+            value, rate, acc = (cast(a.ctypes.data + k * a.strides[0], POINTER(c_double)) for a in torques)
+            slave.fmi2SetReal(component, tvrs, n, value)
+            slave.fmi2SetRealInputDerivatives(component, tvrs, n, orders[0], rate)
+            slave.fmi2SetRealInputDerivatives(component, tvrs, n, orders[1], acc)
+
+    return set_drive, set_torques
+
+
 def _set_inputs(slave, inst: _Instance, payload: Payload, t: float, step: float) -> None:
+    """The inputs at time t (initialization; the steps use :func:`_input_setter`)."""
     q, qd, qdd = payload.motion(t, step)
-    slave.setReal(_input_vrs(inst, len(q)), [float(x) for x in (*q, *qd, *qdd)])
+    from ..motion import input_names
+
+    vrs = [inst.vr(name) for name in input_names(len(q))]
+    slave.setReal(vrs, [float(x) for x in (*q, *qd, *qdd)])
     if payload.torques is not None:
         value, rate, acc = payload.torques(t)
-        vrs = [inst.vr(n) for n in payload.torques.names]
-        slave.setReal(vrs, [float(x) for x in value])
-        slave.setRealInputDerivatives(vrs, [1] * len(vrs), [float(x) for x in rate])
-        slave.setRealInputDerivatives(vrs, [2] * len(vrs), [float(x) for x in acc])
+        tvrs = [inst.vr(n) for n in payload.torques.names]
+        slave.setReal(tvrs, [float(x) for x in value])
+        slave.setRealInputDerivatives(tvrs, [1] * len(tvrs), [float(x) for x in rate])
+        slave.setRealInputDerivatives(tvrs, [2] * len(tvrs), [float(x) for x in acc])

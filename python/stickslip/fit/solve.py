@@ -116,6 +116,11 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     start.history += [("single", *h) for h in hist]
     start.z, start.cost, start.nfev = res.x, float(res.cost), nfev + res.nfev
     start.status, start.message = ("converged" if res.status > 0 else "stopped"), res.message
+    failed = [r for r in problem.runs([res.x], "single")[0] if r.status != "ok"]
+    if failed:
+        # A start that ends where the FMU refuses or discards has no cost to compare.
+        start.cost, start.status = math.inf, "failed"
+        start.message = f"ended at a point whose run ended {failed[0].status}: {failed[0].message}"
     return start
 
 

@@ -200,7 +200,45 @@ def _checked(doc: dict, source: str, base: Path) -> FitSpec:
         clash = sorted(set(e.parameters) & {x.name for x in estimates})
         if clash:
             raise FitSpecError(f"{source}: experiment {e.name!r}: parameters {clash} are also estimated")
+        _static_above_kinetic(estimates, e, variables, source)
     return FitSpec(fmu, exps, estimates, options, source, md)
+
+
+def _static_above_kinetic(estimates: list, experiment, variables: dict, source: str) -> None:
+    """The FMU refuses μ_s[i] < μ_k[i]. Where only one of the two is estimated, its bounds
+    must keep it on the right side of the other's value in every experiment (the pair
+    estimated together is kept there by the fit itself, through μ_s − μ_k >= 0)."""
+    by_name = {e.name: e for e in estimates}
+    for e in estimates:
+        kind, _, rest = e.name.partition("[")
+        if kind not in ("mu_k", "mu_s"):
+            continue
+        other = ("mu_s[" if kind == "mu_k" else "mu_k[") + rest
+        if other in by_name or other not in variables:
+            continue
+        value = experiment.parameters.get(other, variables[other].start)
+        if value is None:
+            continue
+        value = float(value)
+        if kind == "mu_k" and e.high > value:
+            raise FitSpecError(
+                f"{source}: estimate.{e.name!r}.bounds = [{e.low:g}, {e.high:g}] reach above {other} = {value:g} "
+                f"(experiment {experiment.name!r}), which the FMU refuses (mu_s >= mu_k): estimate {other} too, "
+                f"or give it in the experiment's parameters, or keep the bound <= {value:g}"
+            )
+        if kind == "mu_s" and e.low < value:
+            raise FitSpecError(
+                f"{source}: estimate.{e.name!r}.bounds = [{e.low:g}, {e.high:g}] reach below {other} = {value:g} "
+                f"(experiment {experiment.name!r}), which the FMU refuses (mu_s >= mu_k): estimate {other} too, "
+                f"or give it in the experiment's parameters, or keep the bound >= {value:g}"
+            )
+    pairs = [(e, by_name.get(e.name.replace("mu_s[", "mu_k["))) for e in estimates if e.name.startswith("mu_s[")]
+    for s, k in pairs:
+        if k is not None and s.initial < k.initial:
+            raise FitSpecError(
+                f"{source}: estimate.{s.name!r}.initial = {s.initial:g} is below {k.name} initial = {k.initial:g}; "
+                "the FMU refuses mu_s < mu_k"
+            )
 
 
 def _options(raw, where: str) -> dict:
