@@ -391,7 +391,7 @@ def run(
         modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName=scenario.name,
     )
-    n = int(round(scenario.end / step))
+    n = round(scenario.end / step)
     log = {k: {j: np.zeros(n + 1) for j in joints} for k in LOGGED}
     log["time"] = np.array([k * step for k in range(n + 1)])
     reals = ("q", "qd", "theta_m", "omega_m", "tau_load", "eps_joint", "F_drive", "F_friction")
@@ -529,7 +529,7 @@ def hunting_metrics(log: dict, joint: int = 1, settle: float = 1.0, band: float 
     tau = log["tau_m"][joint][w]
     return {
         "window": [float(t0), float(t[-1])],
-        "sign_changes": int(len(cross)),
+        "sign_changes": len(cross),
         "stick_phases": rising_edges(log["stick"][joint][w]),
         "stick_phases_rotor": rising_edges(log["stick_m"][joint][w]),
         "stuck_fraction": float(np.mean(log["stick"][joint][w])),
@@ -608,7 +608,7 @@ def gain_sweep(fmu=None, kvs=(10, 20, 30, 40, 60, 80, 100, 120, 160, 240, 320), 
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _two_mass_sampled(k: float, link_inertia: float, rotor: float, step: float):
     """The two masses (rotor and link, link units) on the gear spring k, state (x, x', q, q'),
     input the link-side motor torque held over a period: (A_d, B_d) of the sampled plant."""
@@ -736,7 +736,7 @@ def write_csv(log: dict, path: Path):
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(cols)
-        for row in zip(*data):
+        for row in zip(*data, strict=True):
             w.writerow([f"{x:.10g}" for x in row])
 
 
@@ -744,7 +744,7 @@ def _stick_bars(ax, t, flag, y, height, color, label):
     """Stiction phases as horizontal bars at height y."""
     on = flag > 0.5
     edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
         ax.broken_barh(
             [(t[a], t[min(b, len(t) - 1)] - t[a] + 1e-9)], (y - height / 2, height), color=color, label=label
         )
@@ -817,7 +817,7 @@ def figure_hunting(logs: list, metrics: list, path: Path, joint: int = 1):
 
     fig, axes = plt.subplots(5, len(logs), figsize=(5.0 * len(logs), 11), sharex=True, sharey="row")
     axes = np.atleast_2d(axes).reshape(5, len(logs))
-    for c, (log, m) in enumerate(zip(logs, metrics)):
+    for c, (log, m) in enumerate(zip(logs, metrics, strict=True)):
         t = log["time"]
         s = log["scenario"]
         ax = axes[:, c]
@@ -883,7 +883,7 @@ def figure_encoders(logs: list, metrics: list, sweep: dict | None, limits: dict 
     fig = plt.figure(figsize=(5.0 * ncol, 2.3 * rows + 1))
     gs = fig.add_gridspec(rows, ncol)
     first = None
-    for c, (log, m) in enumerate(zip(logs, metrics)):
+    for c, (log, m) in enumerate(zip(logs, metrics, strict=True)):
         t = log["time"]
         ax = [fig.add_subplot(gs[r, c], sharex=first) for r in range(4)]
         first = first or ax[0]
@@ -934,7 +934,7 @@ def figure_encoders(logs: list, metrics: list, sweep: dict | None, limits: dict 
             ax.semilogy(kv, err, marker=marker, label=f"{fb} encoder: largest |r − q| in the hold")
             bad = [(r["kv"], 1e3 * r["max_abs_error"]) for r in runs if not r["stable"]]
             if bad:
-                ax.semilogy(*zip(*bad), "x", color="tab:red", ms=10, mew=2)
+                ax.semilogy(*zip(*bad, strict=True), "x", color="tab:red", ms=10, mew=2)
         if limits:
             for fb, ls in (("motor", "--"), ("link", ":")):
                 if math.isfinite(limits[fb]):
@@ -1062,7 +1062,7 @@ def main(argv=None):
     end_b = 5.0
     summary["b_hunting"] = {
         "parameters": {**HARMONIC_DRIVE, **STRIBECK},
-        "move": dict(zip(("q0", "q1", "T"), MOVE)),
+        "move": dict(zip(("q0", "q1", "T"), MOVE, strict=True)),
         "friction_estimate_link_Nm": FRICTION_ESTIMATE,
     }
     print(f"(b) slow positioning move of joint 1, hunting counted from {MOVE[2] + 1:g} s to {end_b:g} s:")
@@ -1082,7 +1082,7 @@ def main(argv=None):
     end_c = 3.0 if a.quick else 4.0
     summary["c_encoders"] = {
         "parameters": {**HARMONIC_DRIVE, **OWN_FRICTION},
-        "move": dict(zip(("q0", "q1", "T"), MOVE)),
+        "move": dict(zip(("q0", "q1", "T"), MOVE, strict=True)),
     }
     print("(c) motor encoder against link encoder, the arm's own friction:")
     logs_c, metrics_c, summary["c_encoders"]["runs"] = _positioning(

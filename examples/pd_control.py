@@ -103,7 +103,7 @@ def run(
     qd_vr = [vr[f"qd[{i}]"] for i in FLEXIBLE]
     stick_vr = [vr[f"stick[{i}]"] for i in FLEXIBLE]
 
-    n = int(round(end / step))
+    n = round(end / step)
     log = {k: np.zeros((n + 1, 2)) for k in ("r", "q", "qd", "q_star")}
     log["stick"] = np.zeros((n + 1, 2), dtype=bool)
     log["time"] = np.array([k * step for k in range(n + 1)])
@@ -184,7 +184,7 @@ def main(argv=None):
         import matplotlib.pyplot as plt
 
         fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
-        for j, (i, unit) in enumerate(zip(FLEXIBLE, ("rad", "m"))):
+        for j, (i, unit) in enumerate(zip(FLEXIBLE, ("rad", "m"), strict=True)):
             ax[j].plot(log["time"], log["q"][:, j], label=f"q{i}")
             ax[j].plot(log["time"], log["q_star"][:, j], lw=0.8, label=f"q{i}* (controller)")
             ax[j].plot(log["time"], log["r"][:, j], "--", lw=0.8, label="path")

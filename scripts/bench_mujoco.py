@@ -71,7 +71,7 @@ def mujoco_xml_from_urdf(path, balance_inertia: bool = True) -> str:
     xml = re.sub(r"<(visual|collision)\b[^>]*/>", "", xml)
     opts = ' balanceinertia="true"' if balance_inertia else ""
     xml, count = re.subn(
-        r"(<robot\b[^>]*>)", r'\1<mujoco><compiler discardvisual="true"%s/></mujoco>' % opts, xml, count=1
+        r"(<robot\b[^>]*>)", rf'\1<mujoco><compiler discardvisual="true"{opts}/></mujoco>', xml, count=1
     )
     if count != 1:
         raise SystemExit(f"{path}: no <robot> element")
@@ -215,7 +215,7 @@ def main(argv=None) -> int:
             flush=True,
         )
     print(
-        "\n| arm | joints | mj_step at %g s: median wall | best wall | median CPU |\n|---|---|---|---|---|" % a.timestep
+        f"\n| arm | joints | mj_step at {a.timestep:g} s: median wall | best wall | median CPU |\n|---|---|---|---|---|"
     )
     for arm, nq, med, best, cmed in rows:
         print(f"| {arm} | {nq} | {med:.3f} µs | {best:.3f} µs | {cmed:.3f} µs |")

@@ -213,13 +213,12 @@ def main():
         if v not in index:
             visit(v)
     cycles = [c for c in comps if len(c) > 1]
-    rel = lambda p: str(p)
     for c in cycles:
         members = set(c)
-        print("cycle: " + ", ".join(sorted(rel(p) for p in c)))
+        print("cycle: " + ", ".join(sorted(str(p) for p in c)))
         for a in sorted(c):
             for b in sorted(graph[a] & members):
-                print(f"    {rel(a)} -> {rel(b)}")
+                print(f"    {a} -> {b}")
     if cycles:
         print(f"check_imports: {len(cycles)} cycle(s) among {len(nodes)} files")
         return 1

@@ -30,9 +30,9 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import FixedLocator, MaxNLocator  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import FixedLocator, MaxNLocator
 
 STICK_COLOR = "tab:red"
 INDEXED = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*\[\s*(\d+)\s*\]\s*$")
@@ -77,7 +77,7 @@ def runs(mask):
     """Index ranges [start, stop) where mask is True."""
     m = np.concatenate(([False], np.asarray(mask, bool), [False]))
     d = np.diff(m.astype(np.int8))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
 
 
 def stick_segments(t, stick):
@@ -141,7 +141,7 @@ def joint_figure(t, joints, cols, names, sticks, title, ylabel_fmt, fname, top=N
         top(axes[0])
         k0 = 1
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for ax, i in zip(axes[k0:], joints):
+    for ax, i in zip(axes[k0:], joints, strict=True):
         st = cols[sticks[i]] if i in sticks else None
         plot_with_stick_bar(ax, t, cols[names[i]], st, colors[(i - 1) % len(colors)], names[i])
         ax.set_ylabel(ylabel_fmt.format(i=i))
@@ -223,14 +223,14 @@ def main(argv=None):
         axes = axes[:, 0]
         if has_qd:
             ax = axes[0]
-            for i, name in qd.items():
+            for name in qd.values():
                 ax.plot(t, cols[name], lw=1.1, label=name)
             ax.axhline(0.0, color="k", lw=0.6)
             ax.set_ylabel("qd[i]")
             ax.legend(loc="upper right", fontsize=8, ncol=min(len(qd), 6))
             ax.grid(True, alpha=0.3)
         ax = axes[-1]
-        for row, (i, name) in enumerate(stick.items()):
+        for row, name in enumerate(stick.values()):
             segs = stick_segments(t, cols[name])
             if segs:
                 ax.broken_barh(segs, (row - 0.35, 0.7), facecolors=STICK_COLOR, edgecolor="none")
@@ -269,7 +269,7 @@ def main(argv=None):
         fig, axes = plt.subplots(
             len(fj), 1, sharex=True, squeeze=False, figsize=(10, 1.9 * len(fj) + 1.2), layout="constrained"
         )
-        for ax, i in zip(axes[:, 0], fj):
+        for ax, i in zip(axes[:, 0], fj, strict=True):
             if i in nn:
                 ax.plot(t, cols[nn[i]], color="0.5", lw=1.0, label=nn[i])
             if i in ffr:

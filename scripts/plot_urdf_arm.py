@@ -33,11 +33,11 @@ from xml.etree import ElementTree
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plot_reference import STICK_COLOR, indexed, plot_with_stick_bar, read_csv, stick_segments  # noqa: E402
+from plot_reference import STICK_COLOR, indexed, plot_with_stick_bar, read_csv, stick_segments
 
 NAMED = re.compile(r"\(`([^`]+)`")
 
@@ -104,7 +104,7 @@ def main(argv=None):
     fig, axes = plt.subplots(
         len(flex), 1, sharex=True, squeeze=False, figsize=(10, 1.9 * len(flex) + 1.2), layout="constrained"
     )
-    for ax, i in zip(axes[:, 0], flex):
+    for ax, i in zip(axes[:, 0], flex, strict=True):
         st = cols[stick[i]] if i in stick else None
         plot_with_stick_bar(ax, t, cols[epsj[i]], st, colors[(i - 1) % len(colors)], epsj[i])
         ax.set_ylabel(f"eps_joint[{i}] [rad]")

@@ -96,7 +96,7 @@ def main(argv=None):
             lag = tau[i - 1] / params[f"k[{i}]"]
             gap = params.get(f"Delta[{i}]", 0.0)
             new[i - 1] = q_star[i - 1] - (lag + (gap if lag > 0 else -gap))
-        change = max(abs(a - b) for a, b in zip(new, q))
+        change = max(abs(a - b) for a, b in zip(new, q, strict=True))
         q = new
         if change < 1e-15:
             break

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import itertools
 import math
 import re
 import tomllib
@@ -112,7 +113,7 @@ class TableMotion:
         self.columns = {k: np.asarray(v, dtype=np.float64) for k, v in columns.items()}
 
     @classmethod
-    def from_csv(cls, path, joints: int) -> "TableMotion":
+    def from_csv(cls, path, joints: int) -> TableMotion:
         """Reads a CSV with a header row: ``time``, ``q_star[i]`` (``qd_star[i]``, ``qdd_star[i]`` optional)."""
         path = Path(path)
         try:
@@ -226,7 +227,7 @@ class CycloidMotion:
 
     def __call__(self, t: float, step: float = 0.0):
         q, qd, qdd = [], [], []
-        for segs, hold in zip(self.segments, self.hold):
+        for segs, hold in zip(self.segments, self.hold, strict=True):
             if not segs:
                 a, b, c = hold, 0.0, 0.0
             else:
@@ -463,7 +464,7 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
         data.append((line, values))
     if len(data) < 2:
         raise MotionError(f"{src}: {len(data)} sample(s); a motion needs at least 2")
-    for (l0, a), (l1, b) in zip(data, data[1:]):
+    for (l0, a), (l1, b) in itertools.pairwise(data):
         if not b[0] > a[0]:
             raise MotionError(
                 f"{src}, line {l1}: t = {b[0]!r} s is not later than t = {a[0]!r} s on line {l0}; "

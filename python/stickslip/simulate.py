@@ -117,7 +117,8 @@ def run(
         log.close()
         shutil.rmtree(unzipdir, ignore_errors=True)
     names = ["time"] + [v.name for v in real_out + bool_out]
-    return {name: list(column) for name, column in zip(names, zip(*rows))} if rows else {name: [] for name in names}
+    columns = zip(*rows, strict=True) if rows else ([] for _ in names)
+    return {name: list(column) for name, column in zip(names, columns, strict=True)}
 
 
 def write_csv(result: dict, path) -> None:
@@ -128,7 +129,7 @@ def write_csv(result: dict, path) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(names)
-        for row in zip(*(result[k] for k in names)):
+        for row in zip(*(result[k] for k in names), strict=True):
             w.writerow([repr(float(x)) for x in row])
 
 

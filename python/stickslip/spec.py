@@ -100,7 +100,7 @@ class Spec:
 
     def variants(self) -> list:
         """The parameter values of every variant, a dict per variant; its index is its ``run`` id."""
-        points = [dict(zip(self.grid, values)) for values in itertools.product(*self.grid.values())]
+        points = [dict(zip(self.grid, values, strict=True)) for values in itertools.product(*self.grid.values())]
         if not self.sample:
             return points
         draws = {

@@ -152,7 +152,7 @@ def study_cases(fixed_step: float | None = None, step_h: float = DEFAULT_STEP_H)
     def one_per_variant(quantity, ylabel, variants, scale=1.0, reference=lambda k: ()):
         return tuple(
             Panel(quantity, ylabel, (k,), f"{letter} {v.label}", scale, reference(k))
-            for k, (letter, v) in enumerate(zip(_letters(len(variants)), variants))
+            for k, (letter, v) in enumerate(zip(_letters(len(variants)), variants, strict=True))
         )
 
     return {
@@ -203,7 +203,7 @@ def study_cases(fixed_step: float | None = None, step_h: float = DEFAULT_STEP_H)
 _RUNS = {}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _start_values(fmu: str) -> dict:
     from fmpy import read_model_description
 
@@ -275,7 +275,7 @@ def stick_phases(r: dict, joint: int) -> list:
 def vibration(t, x, window: float = MOVING_MEAN, end: float = MOTION_TIME) -> float:
     """Standard deviation of x about its centred moving mean over ``window`` seconds, for
     0 <= t <= end (samples whose window is complete): the vibration without the drift."""
-    w = max(1, int(round(window / (t[1] - t[0]))) | 1)
+    w = max(1, round(window / (t[1] - t[0])) | 1)
     mean = np.convolve(x, np.ones(w) / w, mode="valid")
     centre = slice(w // 2, w // 2 + len(mean))
     keep = t[centre] <= end + 1e-12
@@ -296,7 +296,7 @@ def measures(r: dict) -> dict:
         out[f"joint{j}"] = {
             "max_abs_eps": float(np.max(e)),
             "final_abs_eps": float(e[-1]),
-            "n_stick": int(round(r[f"n_stick[{j}]"][-1])),
+            "n_stick": round(r[f"n_stick[{j}]"][-1]),
             "t_stick": float(r[f"t_stick[{j}]"][-1]),
             "max_N_normal": float(np.max(r[f"N_normal[{j}]"])),
             "max_abs_F_friction": float(np.max(np.abs(r[f"F_friction[{j}]"]))),
@@ -344,7 +344,7 @@ def claims(case: Case, runs: list, m: list) -> list:
     (the study's coarse steps gave a different stick-slip pattern)."""
     if case.name == "step":
         ref, out = m[-1], []
-        for v, x, r in zip(case.variants, m, runs):
+        for v, x, r in zip(case.variants, m, runs, strict=True):
             if x is ref:
                 continue
             rel = abs(x["max_eps"] - ref["max_eps"]) / ref["max_eps"]
@@ -454,7 +454,7 @@ def write_case_csv(case: Case, runs: list, path: Path) -> None:
     names = list(dict.fromkeys([p.quantity for p in case.panels] + list(case.extra_columns) + list(BASE_COLUMNS)))
     data = [runs[0]["time"]]
     header = ["time"]
-    for v, r in zip(case.variants, runs):
+    for v, r in zip(case.variants, runs, strict=True):
         for n in names:
             header.append(f"{v.key}:{n}")
             data.append(r[n])
@@ -494,7 +494,7 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
         ax.sharex(axes[0])
     for ax in axes[:n]:
         ax.tick_params(labelbottom=False)
-    for ax, p in zip(panels, case.panels):
+    for ax, p in zip(panels, case.panels, strict=True):
         for k in p.variants:
             r = runs[k]
             ax.plot(
@@ -514,13 +514,13 @@ def plot_case(case: Case, runs: list, m: list, path: Path) -> None:
         if not p.title or p.reference:
             ax.legend(loc="lower right" if p.reference else "best", fontsize=8)
     for quantity in {p.quantity for p in case.panels} if case.share_y else ():
-        same = [ax for ax, p in zip(panels, case.panels) if p.quantity == quantity]
+        same = [ax for ax, p in zip(panels, case.panels, strict=True) if p.quantity == quantity]
         lo = min(ax.get_ylim()[0] for ax in same)
         hi = max(ax.get_ylim()[1] for ax in same)
         for ax in same:
             ax.set_ylim(lo, hi)
     t = runs[0]["time"]
-    for ax, span in zip(axes[n:], [(t[0], t[-1]), case.zoom]):
+    for ax, span in zip(axes[n:], [(t[0], t[-1]), case.zoom], strict=False):  # no zoom: one axis
         for row, (k, j) in enumerate(rows):
             # an edge as wide as a line keeps phases of a few µs visible
             ax.broken_barh(
@@ -565,7 +565,7 @@ def summary_markdown(results: dict, settings: dict) -> str:
             "| max \\|ε1\\|, \\|ε3\\| | vibration ε3 [m] | wall [s] |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
-        for v, m, w in zip(res["variants"], res["measures"], res["wall"]):
+        for v, m, w in zip(res["variants"], res["measures"], res["wall"], strict=True):
             j1, j3 = m["joint1"], m["joint3"]
             lines.append(
                 f"| {v} | {m['max_eps']:.4e} | {m['final_eps']:.4e} | {j1['n_stick']}, {j3['n_stick']} "

@@ -206,7 +206,8 @@ def markdown(
         + ".",
         "",
     ]
-    lines += ["## Parameters", ""] + _table(
+    lines += ["## Parameters", ""]
+    lines += _table(
         ["name", "swept as"],
         [[p, "grid " + ", ".join(f"{v:g}" for v in spec.grid[p])] for p in spec.grid]
         + [[p, f"{d.kind} ({d.a:g}, {d.b:g}), n = {spec.n}, seed {spec.seed}"] for p, d in spec.sample.items()],
@@ -247,7 +248,7 @@ def markdown(
             ],
         )
     if len(rows) <= SHOWN_ROWS:
-        cols = ["max_eps", "final_eps"] + [m for m in shown if m not in ("max_eps", "final_eps")][:6]
+        cols = ["max_eps", "final_eps", *[m for m in shown if m not in ("max_eps", "final_eps")][:6]]
         lines += ["", "## Every variant", ""]
         if check:
             lines += [
@@ -268,8 +269,9 @@ def markdown(
         )
     bad = rows[rows["status"] != "ok"]
     if len(bad):
-        lines += ["", f"## Variants not ok ({len(bad)}; the first 20)", ""] + _table(
-            ["run"] + params + ["status", "message"],
+        lines += ["", f"## Variants not ok ({len(bad)}; the first 20)", ""]
+        lines += _table(
+            ["run", *params, "status", "message"],
             [
                 [str(int(r["run"]))] + [r[p] for p in params] + [r["status"], r["message"] or ""]
                 for _, r in bad.head(20).iterrows()
@@ -345,8 +347,9 @@ def convergence_section(rows, params, metrics, threshold: float, convergence: di
         spread_cols = [spread_name(m) for m in metrics if spread_name(m) in done.columns]
         worst = done.assign(_max=done[spread_cols].astype(float).max(axis=1))
         worst = worst[worst["_max"] > threshold].sort_values("_max", ascending=False).head(WORST_ROWS)
-        lines += ["", f"### Not converged: the worst {len(worst)} variants", ""] + _table(
-            ["run"] + params + ["metrics above the threshold (spread)", "max spread"],
+        lines += ["", f"### Not converged: the worst {len(worst)} variants", ""]
+        lines += _table(
+            ["run", *params, "metrics above the threshold (spread)", "max spread"],
             [
                 [str(int(r["run"]))]
                 + [r[p] for p in params]
@@ -363,7 +366,7 @@ def convergence_section(rows, params, metrics, threshold: float, convergence: di
     if len(failed):
         lines += ["", f"### Check runs that failed ({len(failed)}; the first 20; their main rows are kept)", ""]
         lines += _table(
-            ["run"] + params + ["check status", "message"],
+            ["run", *params, "check status", "message"],
             [
                 [str(int(r["run"]))]
                 + [r[p] for p in params]

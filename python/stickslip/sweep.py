@@ -20,12 +20,13 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from distributed import WorkerPlugin
@@ -152,7 +153,7 @@ class ResultStore:
         self.schema = pa.schema([(c, types.get(c, pa.float64())) for c in columns])
         self.waiting = []
         self.last_flush = time.monotonic()
-        self.session = f"{datetime.now(timezone.utc):%Y%m%dT%H%M%S}-{os.getpid()}"
+        self.session = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{os.getpid()}"
         self.written = 0
 
     def rows(self):
@@ -174,7 +175,7 @@ class ResultStore:
         return set(int(r) for r in df.loc[df["status"] != LOST, "run"])
 
     def add(self, row: dict) -> None:
-        self.waiting.append(row | {"finished": datetime.now(timezone.utc)})
+        self.waiting.append(row | {"finished": datetime.now(UTC)})
         if len(self.waiting) >= FLUSH_ROWS or time.monotonic() - self.last_flush >= FLUSH_SECONDS:
             self.flush()
 
@@ -300,9 +301,7 @@ def prepare(spec: Spec, out, check: Check | None = None) -> tuple:
     if missing:
         raise SpecError(f"fmu {spec.fmu}: has no output(s) {missing} for the metrics")
     metrics = metric_names(outputs)
-    columns = (
-        ["run"] + spec.parameters + ["status", "message", "wall_s", "cpu_s", "t_end"] + metrics + ["worker", "finished"]
-    )
+    columns = ["run", *spec.parameters, "status", "message", "wall_s", "cpu_s", "t_end", *metrics, "worker", "finished"]
     convergence = None
     if check is not None:
         check.resolve(md)
@@ -462,7 +461,7 @@ def _execute(
             return f
 
         start = time.perf_counter()
-        flow = as_completed([submit(r) for _, r in zip(range(window), queue)])
+        flow = as_completed([submit(r) for r in itertools.islice(queue, window)])
         last_threads = time.monotonic()
         for f in flow:
             run = pending.pop(f)

@@ -38,7 +38,7 @@ from .fmu import LogCapture, communication_points, initialize, input_references,
 STATUS_NAMES = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _joints(names: tuple) -> tuple:
     """The joint numbers i of the FMU's ``n_stick[i]`` outputs."""
     return tuple(int(m.group(1)) for n in names if (m := re.fullmatch(r"n_stick\[(\d+)\]", n)))
@@ -79,7 +79,7 @@ class _Prepared:
         return self.by_name[name].valueReference
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _prepared(unzipdir: str) -> _Prepared:
     return _Prepared(unzipdir)
 
@@ -181,7 +181,7 @@ def _metrics(row: dict, p: _Prepared, sampled: list, final: list) -> None:
     row["final_eps"] = eps[-1]
     for j, i in enumerate(p.joints, 1):
         row[f"max_N_normal[{i}]"] = max(s[j] for s in sampled)
-    row.update(zip(p.final_names, final))
+    row.update(zip(p.final_names, final, strict=True))
 
 
 def _reason(log: LogCapture, fallback: str) -> str:
