@@ -1,4 +1,5 @@
-"""pytest configuration for tests/python (configuration only: no fixtures here).
+"""pytest configuration for tests/python, and the one fixture several modules share: ``cluster``,
+a loopback Dask cluster per module (the sweep tests: test_sweep_cluster.py, test_convergence.py).
 
 Marker ``slow``: long-running tests (e.g. full reference simulations through the
 FMU). They are *deselected* by default, so ``scripts/test.sh`` / CI stays fast.
@@ -49,3 +50,14 @@ def pytest_collection_modifyitems(config, items):
 def pytest_report_header(config):
     state = "included" if _run_slow(config) else "deselected (use --runslow or RUN_SLOW=1)"
     return f"slow tests: {state}"
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A loopback Dask cluster (tests/python/sweep_cluster.py) for the sweep tests of one module."""
+    from helpers import require_fmu
+    from sweep_cluster import loopback_cluster
+
+    require_fmu()
+    with loopback_cluster(tmp_path_factory.mktemp("dask")) as c:
+        yield c

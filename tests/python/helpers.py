@@ -29,14 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
-
 # Reference motion (shared/reference-manipulator.md) and the FMU's log capture: the
 # package `stickslip` (python/stickslip, installed into the venv by scripts/env.sh).
-from stickslip.fmu import LogCapture  # noqa: F401  (re-exported for the tests)
+from stickslip.fmu import LogCapture
 from stickslip.motion import MOTION_TIME, REFERENCE_PROFILES, RUN_TIME, cycloidal, reference_inputs  # noqa: F401
 from stickslip.motion import input_names as motion_input_names
+
+ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_FMU = ROOT / "target" / "fmu" / "StickSlipManipulator.fmu"
 
 INTERVAL = 1e-3  # communication step, s
 N_JOINTS = 4
@@ -64,7 +64,7 @@ def require_fmu() -> Path:
 
 def communication_times(end: float = RUN_TIME, interval: float = INTERVAL) -> np.ndarray:
     """t_k = k * interval, k = 0..n (the same products as the Rust binary's ``k as f64 * interval``)."""
-    n = int(round(end / interval))
+    n = round(end / interval)
     return np.array([k * interval for k in range(n + 1)], dtype=np.float64)
 
 
@@ -122,7 +122,7 @@ def read_csv(path) -> dict:
     return {name: data[:, j] for j, name in enumerate(header)}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def direct_run(end: float = RUN_TIME, interval: float = INTERVAL) -> dict:
     """The engine's own run of the reference motion (``simulate_reference``), cached per process."""
     out = scratch_dir() / f"direct_{end:g}_{interval:g}.csv"
@@ -149,7 +149,7 @@ def direct_run(end: float = RUN_TIME, interval: float = INTERVAL) -> dict:
 # the FMU
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model_description(path: str | None = None):
     from fmpy import read_model_description
 
@@ -163,7 +163,7 @@ def unzip_dir(path: str | None = None) -> str:
     return _unzip_dir(str(Path(path or fmu_path()).resolve()))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _unzip_dir(path: str) -> str:
     from fmpy import extract
 
@@ -190,7 +190,7 @@ class Variables:
         return [self.vr(n) for n in names]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def variables(path: str | None = None) -> Variables:
     return Variables(model_description(path))
 
@@ -275,7 +275,7 @@ class Slave:
         if self.instantiated:
             try:
                 self.fmu.terminate()
-            except Exception:
+            except Exception:  # noqa: BLE001 -- an instance in any state is freed; its errors were reported before
                 pass
             self.fmu.freeInstance()  # also releases this object's handle of the library
         else:
@@ -336,7 +336,7 @@ def assert_close_signals(actual: dict, expected: dict, names, rel: float = 1e-12
         diff = float(np.max(np.abs(a - e)))
         if diff > rel * scale:
             bad.append(f"{n}: max |diff| = {diff:.3e}, scale {scale:.3e}")
-    assert not bad, "signals differ beyond {:.0e}:\n".format(rel) + "\n".join(bad)
+    assert not bad, f"signals differ beyond {rel:.0e}:\n" + "\n".join(bad)
 
 
 def bit_identical(actual: dict, expected: dict, names) -> bool:

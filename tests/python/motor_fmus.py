@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from helpers import INTERVAL, ROOT, Slave, input_vector, require_fmu
-from urdf_fmus import BUILD_SECONDS, model_fmu
+from urdf_fmus import model_fmu
 
 MOTOR_MODEL = ROOT / "models" / "reference_rrpr_motor.toml"
 MOTOR_JOINTS = (1, 3)  # 1-based joints with a motor drive

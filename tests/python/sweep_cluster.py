@@ -17,8 +17,6 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import pytest
-
 from helpers import require_fmu
 
 DASK = str(Path(sys.executable).with_name("dask"))
@@ -133,14 +131,6 @@ def sweep_process(*args) -> subprocess.Popen:
         text=True,
         preexec_fn=_interruptible,
     )
-
-
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    """A loopback cluster for the tests of one module (import this fixture there)."""
-    require_fmu()
-    with loopback_cluster(tmp_path_factory.mktemp("dask")) as c:
-        yield c
 
 
 def write_spec(path, body: str, stop_time=0.1, step=1e-3):

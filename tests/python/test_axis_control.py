@@ -38,7 +38,7 @@ except ImportError:  # pragma: no cover - when motor_fmus.py is not there: build
 
     from helpers import scratch_dir
 
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def _build_motor_fmu() -> Path:
         prebuilt = os.environ.get("STICKSLIP_MOTOR_FMU")
         if prebuilt:

@@ -31,10 +31,9 @@ import pandas as pd
 import pytest
 
 from helpers import model_description, require_fmu
-from sweep_cluster import STICKSLIP, cluster, sweep, write_spec  # noqa: F401 (cluster: a fixture)
-
 from stickslip import convergence
 from stickslip.convergence import check_convergence, selected_runs, spread, spread_name
+from sweep_cluster import STICKSLIP, sweep, write_spec
 
 CLEARANCES = {"Delta[1]": math.pi / 90, "Delta[3]": 0.002}  # the study's clearance case (Fig. 13)
 
@@ -213,7 +212,7 @@ def test_checked_sweep_has_spreads_and_summary_flags_variants(cluster, tmp_path)
     clear = rows[rows["Delta[1]"] == 0]
     assert (clear["max_eps_spread"] < 1e-2).all(), clear  # without clearance 0.1 % is promised
     flagged = rows[(spreads > 0.01).any(axis=1)]
-    assert len(flagged) >= 1 and (flagged["Delta[1]"] > 0).any(), rows[["run"] + list(spreads.columns)]
+    assert len(flagged) >= 1 and (flagged["Delta[1]"] > 0).any(), rows[["run", *spreads.columns]]
 
     md = (out / "summary.md").read_text(encoding="utf-8")
     assert "## Convergence" in md and f"**{len(flagged)} of 6 checked variants**" in md, md

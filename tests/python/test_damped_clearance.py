@@ -54,7 +54,7 @@ def test_damped_drives_with_backlash_complete_the_reference_motion(stepping):
             s.set_inputs(input_vector(t))
             s.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=1e-3)
             rows.append(s.fmu.getReal(vrs))
-        out = dict(zip(names, np.array(rows).T))
+        out = dict(zip(names, np.array(rows).T, strict=True))
     assert all(np.isfinite(v).all() for v in out.values())
     for j, gap in ((1, 4.62e-4), (3, 3e-5)):
         force, deflection = out[f"F_drive[{j}]"], out[f"eps_joint[{j}]"]

@@ -197,7 +197,7 @@ class Slice:
         cd = blob[cds[0] :]
         (
             magic,
-            length,
+            _length,
             version,
             flags,
             hash_offset,
@@ -246,7 +246,8 @@ def missing(reason: str):
     """Fail in CI, where scripts/test.sh builds darwin64; skip with the reason elsewhere."""
     if in_ci():
         pytest.fail(
-            f"CI=true and {reason}: scripts/test.sh builds darwin64 by default (STICKSLIP_DARWIN64=0 is for developers only)"
+            f"CI=true and {reason}: scripts/test.sh builds darwin64 by default "
+            "(STICKSLIP_DARWIN64=0 is for developers only)"
         )
     pytest.skip(
         f"{reason}: built by `bash scripts/build_fmu.sh` unless STICKSLIP_DARWIN64=0 or --platforms leaves darwin64 out"

@@ -13,6 +13,7 @@ tolerance promises. Sub-step counts, not times, are asserted: the speed is
 measured by the benches (docs/error_control.md).
 """
 
+import itertools
 import math
 
 import numpy as np
@@ -117,7 +118,7 @@ def test_tightening_the_tolerance_moves_max_eps_less_than_it_promises():
     for tolerance in (5e-3, 5e-4, 5e-5):
         r = run({"error_tolerance": tolerance}, 1e-3)
         rows.append((tolerance, np.max(r["eps"]), r["n_substeps"][-1]))
-    for (tol, eps, steps), (_, finer, finer_steps) in zip(rows, rows[1:]):
+    for (tol, eps, steps), (_, finer, finer_steps) in itertools.pairwise(rows):
         assert abs(eps - finer) <= 2.0 * tol * finer, f"tolerance {tol}: max ε {eps} vs {finer} at tol/10"
         assert 2.0 < finer_steps / steps < 5.0, f"tolerance {tol}: {steps} -> {finer_steps} sub-steps"
     fixed = np.max(run(FIXED, 1e-3)["eps"])

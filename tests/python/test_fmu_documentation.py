@@ -146,7 +146,7 @@ class Page(HTMLParser):
             self.problems.append(f"unclosed at the end: {[t for t, _ in self.stack]}")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def archive(which: str):
     """(fmu path, {name: bytes} of the documentation files, ModelDescription)."""
     from fmpy import read_model_description
@@ -186,7 +186,7 @@ def test_fmpy_extract_gives_the_documentation_path(tmp_path):
     which shows the icon ../model.png."""
     import fmpy
 
-    path, files, md = archive("reference")
+    path, files, _ = archive("reference")
     unzipdir = Path(fmpy.extract(str(path), unzipdir=tmp_path / "fmu"))
     index = unzipdir / "documentation" / "index.html"
     assert index.is_file() and index.read_bytes() == files[DOC]
@@ -235,7 +235,7 @@ def test_page_lists_every_variable(which):
     assert sorted(rows) == sorted(v.name for v in md.modelVariables)
     group = {"input": "inputs", "output": "outputs"}
     for v in md.modelVariables:
-        section, (name, vr, ty, unit, range_, start, variability, description) = rows[v.name]
+        section, (_name, vr, ty, unit, range_, start, variability, description) = rows[v.name]
         where = f"{which}: {v.name}"
         if v.causality in group:
             assert section == group[v.causality], where
@@ -263,7 +263,7 @@ def test_page_lists_every_variable(which):
 def _joint_rows(which):
     rows = [r[3] for r in page(which).rows if r[0] == "joints"]
     header, body = rows[0], rows[1:]
-    return [dict(zip(header, cells)) for cells in body]
+    return [dict(zip(header, cells, strict=True)) for cells in body]
 
 
 @fmus()
@@ -342,7 +342,7 @@ def test_icon_is_a_valid_png_of_the_chain(which):
     _, files, _ = archive(which)
     data = files[ICON]
     chunks = _png_chunks(data)
-    assert [k for k, _ in chunks][0] == b"IHDR" and chunks[-1][0] == b"IEND"
+    assert chunks[0][0] == b"IHDR" and chunks[-1][0] == b"IEND"
     width, height, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", chunks[0][1])
     assert (depth, colour, compression, filtering, interlace) == (8, 6, 0, 0, 0)
     raw = zlib.decompress(b"".join(body for kind, body in chunks if kind == b"IDAT"))

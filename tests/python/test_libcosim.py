@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from helpers import (
-    physical,
     assert_close_signals,
     input_names,
     input_vector,
     max_relative_deviation,
+    physical,
     reference_slave,
     require_fmu,
     variables,
@@ -57,7 +57,7 @@ def cosim_run():
     assert execution.add_manipulator(manipulator=manipulator)
 
     in_vrs = v.vrs(input_names())
-    for vr, x in zip(in_vrs, input_vector(0.0)):
+    for vr, x in zip(in_vrs, input_vector(0.0), strict=True):
         assert execution.real_initial_value(index, vr, x)
     real_vrs, bool_vrs = v.vrs(v.real_outputs), v.vrs(v.bool_outputs)
     rows = []

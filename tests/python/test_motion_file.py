@@ -25,7 +25,6 @@ import numpy as np
 import pytest
 
 from helpers import require_fmu
-
 from stickslip import cli
 from stickslip import spec as spec_module
 from stickslip.motion import (
@@ -124,7 +123,7 @@ def _csv(path: Path, t, q, header=None) -> Path:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
-        for row in zip(t, *q.T):
+        for row in zip(t, *q.T, strict=True):
             w.writerow([repr(float(x)) for x in row])
     return path
 
@@ -397,7 +396,7 @@ def test_simulate_with_the_reference_motion_file_is_bit_identical_to_the_default
         cli.main(["simulate", "--fmu", str(fmu), "--motion", str(EXAMPLES / "reference.toml"), "--out", str(out)]) == 0
     )
     assert out.read_bytes() == default_run.read_bytes()
-    header, data = _read(out)
+    _, data = _read(out)
     assert len(data) == 2001 and data[-1, 0] == 2.0
 
 
@@ -470,8 +469,8 @@ def test_sweep_with_the_reference_motion_file_gives_the_reference_rows(fmu, tmp_
         f'fmu = "{fmu}"\n[grid]\n"mu_k[3]" = [0.1, 0.2]\n',
     )
     args = ["sweep", str(spec_path), "--workers", "1"]
-    assert cli.main(args + ["--out", str(tmp_path / "a")]) == 0
-    assert cli.main(args + ["--out", str(tmp_path / "b"), "--motion", str(EXAMPLES / "reference.toml")]) == 0
+    assert cli.main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert cli.main([*args, "--out", str(tmp_path / "b"), "--motion", str(EXAMPLES / "reference.toml")]) == 0
     a, b = (pd.read_parquet(tmp_path / d / "results.parquet").sort_values("run").reset_index(drop=True) for d in "ab")
     same = [c for c in a.columns if c not in ("wall_s", "cpu_s", "worker", "finished")]
     assert (a["status"] == "ok").all()

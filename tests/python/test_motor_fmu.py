@@ -58,7 +58,6 @@ from fmpy.validation import validate_fmu
 from helpers import ROOT, Slave, fmu_path, input_vector, max_relative_deviation, read_csv
 from motor_fmus import (
     BALANCE,
-    BUILD_SECONDS,
     GEAR_RATIO,
     MOTOR_COULOMB,
     MOTOR_JOINTS,
@@ -71,6 +70,7 @@ from motor_fmus import (
     run_motor,
     set_motor_inputs,
 )
+from urdf_fmus import BUILD_SECONDS
 
 INTERVAL = 1e-3
 G = 9.81
@@ -262,7 +262,9 @@ def test_torque_step_and_holding_torque(fmu):
     energy and the motor's heat growing."""
     s, first, rows, b0 = _hold_and_step(fmu)
     try:
-        assert np.all(np.isfinite(rows)), [n for n, ok in zip(s.output_names(), np.isfinite(rows).all(0)) if not ok]
+        assert np.all(np.isfinite(rows)), [
+            n for n, ok in zip(s.output_names(), np.isfinite(rows).all(0), strict=True) if not ok
+        ]
         w = _column(s, rows, "W_drive")
         bal = _balance_rows(s, rows)
         assert np.max(np.abs(bal - b0)) <= BALANCE_TOLERANCE * np.max(np.abs(w)), (
@@ -657,7 +659,7 @@ def test_stickslip_refuses_a_motion_that_moves_a_motor_joint_and_the_study(fmu, 
         "end = 0.02\n[[joint]]\nindex = 1\nhold = 0.2\n[[joint]]\nindex = 2\n"
         "cycloid = { q0 = 0.0, q1 = 0.2, t0 = 0.0, t1 = 0.5 }\n"
     )
-    rc, stdout, err = _stickslip("simulate", "--fmu", fmu, "--motion", str(holding), "--out", str(tmp_path / "h.csv"))
+    rc, _, err = _stickslip("simulate", "--fmu", fmu, "--motion", str(holding), "--out", str(tmp_path / "h.csv"))
     assert rc == 0 and "Traceback" not in err, err
     data = read_csv(tmp_path / "h.csv")
     assert data["q[1]"][0] == 0.2 and data["theta_m[1]"][0] == pytest.approx(20.0) and data["q[2]"][-1] > 0.0

@@ -216,7 +216,7 @@ def _refused(s, name, x, lo, hi, exclusive, kept):
 
 def _outputs_finite(s):
     values = np.array(s.fmu.getReal(s._real_out_vrs), dtype=np.float64)
-    bad = [n for n, x in zip(s.vars.real_outputs, values) if not math.isfinite(x)]
+    bad = [n for n, x in zip(s.vars.real_outputs, values, strict=True) if not math.isfinite(x)]
     assert not bad, f"outputs not finite: {bad}"
 
 
@@ -476,7 +476,7 @@ def test_min_is_enforced_as_declared(var):
 def test_refused_value_in_a_batch_changes_nothing(var):
     """A set of several values with one out of range is refused as a whole: the valid
     values before it in the same call are not taken either."""
-    path, name, lo, hi, fixed = _unpack(var)
+    path, name, _, hi, fixed = _unpack(var)
     with _slave(name, fixed, path) as s:
         # Another variable of the same mode and its start value, set to a valid
         # different value in the same call, before the bad one.

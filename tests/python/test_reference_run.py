@@ -25,7 +25,6 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from helpers import (
-    physical,
     INTERVAL,
     RUN_TIME,
     assert_close_signals,
@@ -34,6 +33,7 @@ from helpers import (
     input_signals,
     input_vector,
     max_relative_deviation,
+    physical,
     reference_slave,
     require_fmu,
     variables,
@@ -108,9 +108,9 @@ def test_simulate_fmu_equals_engine_at_binary_interval():
     res = _simulate(BINARY_INTERVAL)
     direct = direct_run(RUN_TIME, BINARY_INTERVAL)
     assert len(res) == len(direct["time"]) == 2049
-    actual = _as_dict(res, names + ["time"])
-    assert_close_signals(actual, direct, names + ["time"], rel=1e-12)
-    print("bit for bit:", bit_identical(actual, direct, names + ["time"]))
+    actual = _as_dict(res, [*names, "time"])
+    assert_close_signals(actual, direct, [*names, "time"], rel=1e-12)
+    print("bit for bit:", bit_identical(actual, direct, [*names, "time"]))
 
 
 def test_by_hand_run_equals_engine_at_1ms():
@@ -122,7 +122,7 @@ def test_by_hand_run_equals_engine_at_1ms():
     try:
         t0 = time.perf_counter()
         first = slave.outputs()
-        rows = slave.run_reference(0, int(round(RUN_TIME / INTERVAL)))
+        rows = slave.run_reference(0, round(RUN_TIME / INTERVAL))
         wall = time.perf_counter() - t0
     finally:
         slave.free()

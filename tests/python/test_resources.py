@@ -29,7 +29,8 @@ def _cycle():
 def test_instances_and_states_do_not_leak():
     """400 cycles of instantiate, initialize, 3 steps, get/serialize/deserialize/free two FMU
     states, terminate and free grow the resident memory by less than 4 MB after a warm-up of
-    50 cycles (a leaked instance of this model costs ~110 kB, so 350 of them would be ~38 MB). The library stays loaded by another open instance meanwhile."""
+    50 cycles (a leaked instance of this model costs ~110 kB, so 350 of them would be ~38 MB).
+    The library stays loaded by another open instance meanwhile."""
     with reference_slave("keeper"):
         for _ in range(50):
             _cycle()

@@ -26,7 +26,6 @@ import numpy as np
 import pytest
 
 from helpers import require_fmu
-
 from stickslip import study
 
 CI = {"interval": 1e-3}
@@ -37,7 +36,7 @@ RESOLUTIONS = [pytest.param(CI, id="ci"), pytest.param(FULL, id="full", marks=py
 def _run(name, interval, end=study.RUN_TIME, step_h=study.DEFAULT_STEP_H):
     case = study.study_cases(step_h=step_h)[name]
     res = study.run_case(case, end, interval, require_fmu())
-    for v, m in zip(case.variants, res["measures"]):
+    for v, m in zip(case.variants, res["measures"], strict=True):
         j1, j3 = m["joint1"], m["joint3"]
         print(
             f"{name} {v.label}: max eps {m['max_eps']:.4e} m, final {m['final_eps']:.4e} m, "

@@ -25,8 +25,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import FLEXIBLE, Slave, input_vector, require_fmu
-from sweep_cluster import cluster, loopback_cluster, sweep, sweep_process, write_spec  # noqa: F401 (cluster: a fixture)
+from helpers import FLEXIBLE, Slave, input_vector
+from sweep_cluster import loopback_cluster, sweep, sweep_process, write_spec
 
 JOINTS = (1, 2, 3, 4)
 
@@ -247,12 +247,12 @@ def test_motion_csv_equals_reference_motion(tmp_path):
         [x for x in (k * 1e-3,)] + [float(v) for part in reference_inputs(k * 1e-3) for v in part] for k in range(101)
     ]
     path = tmp_path / "motion.csv"
-    path.write_text(",".join(["time"] + names) + "\n" + "\n".join(",".join(repr(x) for x in r) for r in rows))
+    path.write_text(",".join(["time", *names]) + "\n" + "\n".join(",".join(repr(x) for x in r) for r in rows))
     m = TableMotion.from_csv(path, 4)
     for k in (0, 1, 37, 100):
         assert m(k * 1e-3, 1e-3) == reference_inputs(k * 1e-3)
     q_only = TableMotion(t, {f"q_star[{i}]": [r[i] for r in rows] for i in range(1, 5)}, 4)
-    q, qd, qdd = q_only(0.05, 1e-3)
+    _, qd, qdd = q_only(0.05, 1e-3)
     assert qd[2] == pytest.approx((rows[51][3] - rows[50][3]) / 1e-3, rel=1e-12) and qdd == [0.0] * 4
 
 

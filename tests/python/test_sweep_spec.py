@@ -9,7 +9,6 @@ from __future__ import annotations
 import pytest
 
 from helpers import require_fmu
-
 from stickslip import cli, spec
 
 HEAD = 'stop_time = 0.1\ncommunication_step = 1e-3\nmotion = "reference"\n'

@@ -46,7 +46,7 @@ def test_two_instances_in_threads_equal_sequential_runs():
     def worker(label, sv):
         try:
             results[label] = _run(f"thr-{label}", sv)
-        except BaseException as e:  # pragma: no cover - reported below
+        except BaseException as e:  # noqa: BLE001 -- any failure in a thread, reported below
             errors.append((label, repr(e)))
 
     threads = [threading.Thread(target=worker, args=(label, sv)) for label, sv in VARIANTS.items()]
@@ -74,7 +74,7 @@ def test_many_instances_interleaved():
         rows = [[s.outputs()] for s in slaves]
         for k in range(150):
             t = k * 1e-3
-            for s, r in zip(slaves, rows):
+            for s, r in zip(slaves, rows, strict=True):
                 s.set_inputs(input_vector(t))
                 s.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=1e-3)
                 r.append(s.outputs())

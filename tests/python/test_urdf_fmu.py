@@ -85,7 +85,10 @@ def test_resources_hold_the_model_file_naming_the_packaged_urdf_and_the_urdf(fmu
     assert len(urdf_lines) == 1 and re.match(r'urdf = "kuka_iiwa.urdf"', urdf_lines[0]), urdf_lines
     # Everything else as the source model file says it.
     source = IIWA_MODEL.read_text(encoding="utf-8")
-    strip = lambda text: [l for l in text.splitlines() if not re.match(r"\s*urdf\s*=", l)]  # noqa: E731
+
+    def strip(text):
+        return [line for line in text.splitlines() if not re.match(r"\s*urdf\s*=", line)]
+
     assert strip(model) == strip(source)
 
 
@@ -102,7 +105,7 @@ def _cycloid(t, q0, q1, t0, t1):
 
 def test_simulate_fmu_runs_a_motion_of_all_joints_with_finite_outputs(fmu, md):
     stop, dt = 0.4, 1e-3
-    t = np.array([k * dt for k in range(int(round(stop / dt)) + 1)])
+    t = np.array([k * dt for k in range(round(stop / dt) + 1)])
     names = [f"{g}[{i}]" for g in ("q_star", "qd_star", "qdd_star") for i in range(1, N + 1)]
     signals = np.zeros(len(t), dtype=[("time", float)] + [(n, float) for n in names])
     signals["time"] = t
@@ -144,7 +147,7 @@ def _instantiate(fmu_file, name):
     )
     try:
         slave.instantiate(callbacks=log.callbacks, loggingOn=False)
-    except Exception as e:  # fmpy: "Failed to instantiate model"
+    except Exception as e:  # noqa: BLE001 -- fmpy raises a bare Exception("Failed to instantiate model")
         assert "instantiate" in str(e).lower(), e
         slave.freeLibrary()
         return False, [m for (_, st, _, m) in log.records if st == fmi2Error], unzipdir
@@ -212,7 +215,7 @@ def test_corrupted_or_missing_packaged_urdf_fails_instantiate_cleanly_naming_it(
         assert any(str(unzipdir) in m for m in errors), errors  # the full path
     # fmpy's one-call simulation raises too, and the process is fine: the intact FMU
     # instantiates again.
-    with pytest.raises(Exception):
+    with pytest.raises(Exception, match="Failed to instantiate model"):  # fmpy's bare Exception
         simulate_fmu(str(bad), stop_time=0.01)
     ok, errors, _ = _instantiate(fmu, f"intact-after-{case}")
     assert ok and not errors, errors

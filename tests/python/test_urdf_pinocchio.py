@@ -279,14 +279,14 @@ gravity = [0.0, 0.0, -{g}]
 """
 
 
-def pendulum_by_hand(L, m, I, g, q, qd, qdd):
-    """A point mass m at (L, 0, 0) of the arm's frame (plus inertia I about it) on a hinge
+def pendulum_by_hand(L, m, inertia, g, q, qd, qdd):
+    """A point mass m at (L, 0, 0) of the arm's frame (plus ``inertia`` about it) on a hinge
     about y, 1 m above the base; the arm's frame is Ry(q). The force the base exerts on the
     arm is m (a_c - g), in the arm's frame: a_c = (-qd² L, 0, -qdd L), g = R^T (0, 0, -g) =
-    (g sin q, 0, -g cos q); the moment about the hinge is r x f + I qdd about y."""
+    (g sin q, 0, -g cos q); the moment about the hinge is r x f + inertia qdd about y."""
     s, c = math.sin(q), math.cos(q)
     f = m * np.array([-qd * qd * L - s * g, 0.0, -qdd * L + c * g])
-    n = np.array([0.0, -L * f[2] + I * qdd, 0.0])
+    n = np.array([0.0, -L * f[2] + inertia * qdd, 0.0])
     tau = n[1]
     x_e = np.array([L * c, 0.0, 1.0 - L * s])
     return f, n, tau, x_e
@@ -297,8 +297,8 @@ def test_pinocchio_and_engine_reactions_equal_hand_computed_pendulum(tmp_path):
     n[1], tau[1], x_E on a one-link URDF pendulum equal the reactions computed by hand: the
     force and moment the parent applies on the child, gravity included, in the child link
     frame, about the joint origin. To 1e-12 relative to the largest magnitude."""
-    L, m, I, g = 0.7, 3.0, 0.02, 9.81
-    (tmp_path / "pendulum.urdf").write_text(PENDULUM_URDF.format(L=L, m=m, I=I), encoding="utf-8")
+    L, m, inertia, g = 0.7, 3.0, 0.02, 9.81
+    (tmp_path / "pendulum.urdf").write_text(PENDULUM_URDF.format(L=L, m=m, I=inertia), encoding="utf-8")
     (tmp_path / "pendulum.toml").write_text(PENDULUM_TOML.format(L=L, g=g), encoding="utf-8")
     mf = model_file(tmp_path / "pendulum.toml")
     model = pinocchio_model(mf)
@@ -306,7 +306,7 @@ def test_pinocchio_and_engine_reactions_equal_hand_computed_pendulum(tmp_path):
     q, qd, qdd = states[:, :1], states[:, 1:2], states[:, 2:]
     ref = pinocchio_dynamics(model, mf, q, qd, qdd)
     eng = engine_inverse_dynamics(tmp_path / "pendulum.toml", q, qd, qdd, tmp_path)
-    hand = [pendulum_by_hand(L, m, I, g, *row) for row in states]
+    hand = [pendulum_by_hand(L, m, inertia, g, *row) for row in states]
     hand_f = np.array([h[0] for h in hand])
     hand_n = np.array([h[1] for h in hand])
     hand_tau = np.array([h[2] for h in hand])
@@ -316,7 +316,7 @@ def test_pinocchio_and_engine_reactions_equal_hand_computed_pendulum(tmp_path):
         assert relative_deviation(got["n"][:, 0], hand_n) < 1e-12, (who, got["n"][:, 0], hand_n)
         assert relative_deviation(got["tau"][:, 0], hand_tau) < 1e-12, (who, got["tau"][:, 0], hand_tau)
         assert relative_deviation(got["x_E"], hand_x) < 1e-12, (who, got["x_E"], hand_x)
-        assert relative_deviation(got["M"][:, 0, 0], np.full(len(states), m * L * L + I)) < 1e-12
+        assert relative_deviation(got["M"][:, 0, 0], np.full(len(states), m * L * L + inertia)) < 1e-12
     # At q = 0, at rest: the hinge holds the weight (f = (0, 0, m g)) and the moment -m g L about y.
     assert np.allclose(ref["f"][0, 0], [0.0, 0.0, m * g]) and np.isclose(ref["n"][0, 0, 1], -m * g * L)
 
@@ -370,7 +370,7 @@ def test_random_states_joint_reactions_at_joint_origins_equal_pinocchio(random_c
 def test_random_states_end_point_equals_pinocchio_tip_frame(random_comparison, arm, variant):
     """x_E equals Pinocchio's placement of the tip_link frame applied to the model file's
     end_point, to 1e-9 relative to the largest distance of the end point from the base."""
-    mf, eng, ref = random_comparison(arm, variant)
+    _, eng, ref = random_comparison(arm, variant)
     scale = float(np.max(np.linalg.norm(ref["x_E"], axis=1)))
     dev = float(np.max(np.abs(eng["x_E"] - ref["x_E"]))) / scale
     print(f"{arm}/{variant}: x_E worst relative deviation {dev:.2e}")
@@ -382,7 +382,7 @@ def test_random_states_end_point_equals_pinocchio_tip_frame(random_comparison, a
 def test_random_states_mass_matrix_equals_pinocchio_crba(random_comparison, arm, variant):
     """M equals pin.crba at 50 random states: M_ij to 1e-9 relative to the largest
     sqrt(M_ii M_jj) over the states (which bounds |M_ij|); M symmetric."""
-    mf, eng, ref = random_comparison(arm, variant)
+    _, eng, ref = random_comparison(arm, variant)
     d = np.sqrt(np.einsum("kii->ki", ref["M"]))
     scale = np.max(d[:, :, None] * d[:, None, :], axis=0)
     dev = float(np.max(np.abs(eng["M"] - ref["M"]) / scale))
@@ -432,9 +432,13 @@ def test_fmu_motion_equations_of_motion_equal_pinocchio_rnea(fmu_runs, arm, vari
         rhs = out[f"F_drive[{i}]"] - out[f"F_friction[{i}]"]
         devs.append(relative_deviation(rhs, ref["tau"][:, i - 1]))
     flexible = [mf.flexible(i) for i in range(1, mf.n + 1)]
-    worst = lambda sel: (
-        ", ".join(f"{i}: {d:.2e}" for i, (d, fl) in enumerate(zip(devs, flexible), 1) if fl == sel) or "none"
-    )  # noqa: E731
+
+    def worst(sel):
+        return (
+            ", ".join(f"{i}: {d:.2e}" for i, (d, fl) in enumerate(zip(devs, flexible, strict=True), 1) if fl == sel)
+            or "none"
+        )
+
     stiction = [int(out[f"n_stick[{i}]"][-1]) for i in range(1, mf.n + 1)]
     print(
         f"{arm}/{variant} FMU motion: equation of motion relative deviation, flexible joints {worst(True)}; "
@@ -518,7 +522,7 @@ def test_mujoco_bench_arm_has_pinocchio_dynamics_and_model_file_drives(arm):
     mujoco = pytest.importorskip("mujoco")
     bench = _bench_mujoco()
     mf = model_file(ARMS[arm])
-    m, d, pose, _ = bench.mujoco_arm(ARMS[arm], 2e-6)
+    m, d, _, _ = bench.mujoco_arm(ARMS[arm], 2e-6)
     model = pinocchio_model(mf)
     assert m.nq == m.nv == mf.n
     assert [m.joint(j).name for j in range(m.njnt)] == mf.names

@@ -36,7 +36,7 @@ def _platforms_under_test() -> str:
     return "linux64,win64" if any(n.startswith("binaries/win64/") for n in names) else "linux64"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model_fmu(key: str, model: Path, env: str) -> Path:
     """The FMU of model file `model`, built on first use into the scratch directory as
     `<key>.fmu` for the platforms under test (RuntimeError with build_fmu.sh's output if the

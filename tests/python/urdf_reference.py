@@ -65,7 +65,7 @@ class ModelFile:
         self.entries = self.doc.get("joints", {})
         root = ET.parse(self.urdf).getroot()
         self.urdf_joints = {j.get("name"): j for j in root.findall("joint")}
-        links = {l.get("name") for l in root.findall("link")}
+        links = {link.get("name") for link in root.findall("link")}
         children = {j.find("child").get("link") for j in root.findall("joint")}
         parents = {j.find("parent").get("link") for j in root.findall("joint")}
         (urdf_root,) = links - children
@@ -112,7 +112,7 @@ class ModelFile:
         return self.entries.get(self.names[i - 1], {}).get("bearings")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model_file(path) -> ModelFile:
     return ModelFile(path)
 
@@ -199,9 +199,9 @@ def bearing_normal_load(bearings: dict, f: np.ndarray, n: np.ndarray) -> np.ndar
     """R_A + R_B + |f_z| of the study's (3.13)-(3.15) from reactions at the reaction point
     (joint frame, z along the axis): bearing A l_A below, B l_B above the point."""
     la, lb = bearings["l_a"], bearings["l_b"]
-    l = la + lb
-    r_a = np.hypot(lb * f[..., 0] - n[..., 1], lb * f[..., 1] + n[..., 0]) / l
-    r_b = np.hypot(la * f[..., 0] + n[..., 1], la * f[..., 1] - n[..., 0]) / l
+    span = la + lb
+    r_a = np.hypot(lb * f[..., 0] - n[..., 1], lb * f[..., 1] + n[..., 0]) / span
+    r_b = np.hypot(la * f[..., 0] + n[..., 1], la * f[..., 1] - n[..., 0]) / span
     return r_a + r_b + np.abs(f[..., 2])
 
 
@@ -213,12 +213,12 @@ def _cargo() -> str:
     return shutil.which("cargo") or str(Path.home() / ".cargo" / "bin" / "cargo")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def engine_binaries() -> Path:
     """target/release with ``inverse_dynamics``, ``package_fmu`` and the cdylib, built (or
     brought up to date: cargo does nothing when they are) by ``cargo build --release``."""
     cmd = [_cargo(), "build", "--release", "--quiet", "--lib", "--bin", "inverse_dynamics", "--bin", "package_fmu"]
-    r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stderr[-4000:]}")
     return RELEASE
@@ -235,9 +235,10 @@ def _parse_header(line: str, width: int) -> list:
 
 def read_table(path) -> dict:
     """A CSV of numbers as {column name: float array}."""
-    lines = [l for l in Path(path).read_text(encoding="utf-8").splitlines() if l.strip()]
-    rows = np.array([[float(x) for x in l.split(",")] for l in lines[1:]], dtype=np.float64)
-    header = _parse_header(lines[0], rows.shape[1])
+    with open(path, encoding="utf-8") as f:
+        first = f.readline().rstrip("\n")
+        rows = np.loadtxt(f, delimiter=",", ndmin=2)
+    header = _parse_header(first, rows.shape[1])
     assert len(header) == rows.shape[1], f"{path}: {len(header)} names for {rows.shape[1]} columns"
     return {name: rows[:, c] for c, name in enumerate(header)}
 
@@ -256,8 +257,7 @@ def engine_inverse_dynamics(model_path, q, qd, qdd, work_dir) -> dict:
     subprocess.run(
         [str(exe), "--model", str(model_path), "--states", str(states), "--out", str(out)],
         check=True,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        capture_output=True,
     )
     t = read_table(out)
     col = lambda name: t[name]  # noqa: E731
@@ -277,8 +277,7 @@ def package_fmu(model_path, out) -> Path:
     exe = engine_binaries() / "package_fmu"
     r = subprocess.run(
         [str(exe), "--model", str(model_path), "--out", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        capture_output=True,
         text=True,
     )
     if r.returncode != 0:
