@@ -12,6 +12,7 @@
 use super::variables::{guid, variables, Causality, Quantity, Type, Variability, Variable};
 use super::{DEFAULT_EXPERIMENT, LOG_CATEGORIES, MODEL_IDENTIFIER};
 use crate::model::{ContactGeometry, Drive, JointKind, Model};
+use std::borrow::Cow;
 use std::fmt::Write;
 
 /// Colours of the drive kinds, shared with the icon (`model.png`): rigid,
@@ -27,21 +28,11 @@ pub fn drive_colour_index(drive: &Drive) -> usize {
     }
 }
 
-/// Text with `&`, `<`, `>`, `"` and `'` replaced by character references:
-/// safe as element content and as a quoted attribute value.
-pub fn escape_html(text: &str) -> String {
-    let mut out = String::with_capacity(text.len() + text.len() / 8);
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
+/// Text with `&`, `<`, `>`, `"` and `'` replaced by character references
+/// (quick-xml's escaping): safe as element content and as a quoted attribute
+/// value.
+pub fn escape_html(text: &str) -> Cow<'_, str> {
+    quick_xml::escape::escape(text)
 }
 
 /// A number in its shortest round-trip digits, with an exponent outside
@@ -565,7 +556,7 @@ mod tests {
 
     #[test]
     fn escapes_the_five_characters() {
-        assert_eq!(escape_html(r#"a<b>&"c'"#), "a&lt;b&gt;&amp;&quot;c&#39;");
+        assert_eq!(escape_html(r#"a<b>&"c'"#), "a&lt;b&gt;&amp;&quot;c&apos;");
         assert_eq!(escape_html("mu_s >= mu_k"), "mu_s &gt;= mu_k");
     }
 
@@ -579,7 +570,7 @@ mod tests {
                 let row =
                     format!("<code>{}</code></td><td class=\"num\">{}</td>", escape_html(&v.name), v.value_reference);
                 assert!(html.contains(&row), "{} missing", v.name);
-                assert!(html.contains(&escape_html(&v.description)), "description of {} missing", v.name);
+                assert!(html.contains(&*escape_html(&v.description)), "description of {} missing", v.name);
             }
             assert!(html.contains(&guid(text, &variables(&model))));
             assert_eq!(html.matches("<tr><td class=\"num\">").count(), model.nq());
