@@ -191,7 +191,7 @@ def moving_joints(motion) -> list:
     if isinstance(motion, CycloidMotion):
         return [i for i, segs in enumerate(motion.segments, 1) if any(c.q0 != c.q1 for c in segs)]
     if isinstance(motion, SplineMotion):
-        return [i for i in range(1, motion.joints + 1) if np.any(motion.coefficients[:3, :, i - 1] != 0.0)]
+        return [i for i in range(1, motion.joints + 1) if np.any(motion.spline.c[:3, :, i - 1] != 0.0)]
     return []
 
 
@@ -252,9 +252,9 @@ class CycloidMotion:
 class SplineMotion:
     """q*_i sampled at times t_0 < ... < t_m (a CSV), joined by a C2 cubic spline per joint.
 
-    q*' and q*'' are the spline's first and second derivatives, evaluated exactly (from its
-    piecewise-polynomial coefficients), so the three inputs set at a communication point are
-    the value and derivatives of one twice continuously differentiable function, and the
+    q*' and q*'' are the spline's first and second derivatives (SciPy's ``CubicSpline``, a
+    piecewise polynomial, evaluates them exactly), so the three inputs set at a communication
+    point are the value and derivatives of one twice continuously differentiable function, and the
     FMU's Taylor polynomial q* + q*' t + q*'' t^2/2 across the step is that function's
     expansion (deviating from the spline by q*''' h^3/6 at the end of a step of h).
 
@@ -275,8 +275,7 @@ class SplineMotion:
         self.joints = q.shape[1]
         self.source = source
         self.boundary = boundary
-        spline = CubicSpline(self.time, q, axis=0, bc_type=BOUNDARIES[boundary])
-        self.coefficients = np.ascontiguousarray(spline.c)  # (4, samples - 1, joints), highest power first
+        self.spline = CubicSpline(self.time, q, axis=0, bc_type=BOUNDARIES[boundary])
         self.first, self.last = q[0].copy(), q[-1].copy()
         self.end_time = float(self.time[-1])
         self.stop_time = self.end_time + settle if stop_time is None else stop_time
@@ -288,10 +287,7 @@ class SplineMotion:
             return self.first.copy(), zero, zero.copy()
         if t > self.time[-1]:
             return self.last.copy(), zero, zero.copy()
-        k = min(int(np.searchsorted(self.time, t, side="right")) - 1, len(self.time) - 2)
-        c3, c2, c1, c0 = self.coefficients[:, k, :]
-        x = t - self.time[k]
-        return ((c3 * x + c2) * x + c1) * x + c0, (3.0 * c3 * x + 2.0 * c2) * x + c1, 6.0 * c3 * x + 2.0 * c2
+        return self.spline(t), self.spline(t, 1), self.spline(t, 2)
 
     def __call__(self, t: float, step: float = 0.0):
         q, qd, qdd = self.evaluate(t)
