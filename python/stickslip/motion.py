@@ -8,7 +8,8 @@ profile of every joint over T = 1.5 s, evaluated with the same floating-point op
 ``src/motion.rs``, so the inputs are bit-identical to those of the Rust engine.
 
 A *motion file* (TOML, docs/motion.md; :func:`load_motion`) gives the motion of any chain:
-per joint a cycloid (or a sequence of them) or a constant, or a CSV of t and q*_1..q*_n whose
+per joint (a ``[joints.<name>]`` table as in a model file, or an ``[[joint]]`` entry with its
+index or name) a cycloid (or a sequence of them) or a constant, or a CSV of t and q*_1..q*_n whose
 rates and accelerations come from a cubic spline through the samples (:class:`SplineMotion`).
 :func:`fmu_joints` reads the number of joints (and their URDF names, when the FMU gives them)
 from the FMU's modelDescription; the file is checked against it.
@@ -155,8 +156,10 @@ class TableMotion:
 # motion files (docs/motion.md)
 
 MOTION_KEYS = ("description", "joints", "end", "settle", "joint", "csv", "boundary")
-JOINT_KEYS = ("index", "name", "cycloid", "hold")
+MOTION_OF_JOINT = ("cycloid", "hold")  # the keys of a [joints.<name>] table
+JOINT_KEYS = ("index", "name", *MOTION_OF_JOINT)  # the keys of a [[joint]] entry
 CYCLOID_KEYS = ("q0", "q1", "t0", "t1")
+CYCLOID_FORM = "{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }"
 BOUNDARIES = {"not-a-knot": "not-a-knot", "rest": "clamped"}  # `boundary` -> scipy's bc_type
 SETTLE = 0.5  # s, default time simulated after the motion comes to rest (the reference: 1.5 s + 0.5 s)
 
@@ -300,24 +303,23 @@ class SplineMotion:
         )
 
 
-def _number(value, what: str, where: str) -> float:
+def _number(value, what: str, where: str, example: str) -> float:
+    """``value`` as a float; refused unless a finite number, showing the right form ``example``."""
     if not is_finite_number(value):
-        raise MotionError(f"{where}: {what} = {value!r}: must be a finite number")
+        raise MotionError(f"{where}: {what} = {value!r}: must be a finite number, as in {example}")
     return float(value)
 
 
 def _cycloid(entry, what: str, where: str) -> Cycloid:
     if not isinstance(entry, dict):
-        raise MotionError(f"{where}: {what} = {entry!r}: must be a table {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}")
+        raise MotionError(f"{where}: {what} = {entry!r}: must be a table {CYCLOID_FORM}")
     unknown = [k for k in entry if k not in CYCLOID_KEYS]
     if unknown:
         raise MotionError(f"{where}: {what}: unknown key(s) {unknown}; a cycloid has {list(CYCLOID_KEYS)}")
     missing = [k for k in CYCLOID_KEYS if k not in entry]
     if missing:
-        raise MotionError(
-            f"{where}: {what}: missing {missing}; a cycloid is {{ q0 = ..., q1 = ..., t0 = ..., t1 = ... }}"
-        )
-    c = Cycloid(*(_number(entry[k], f"{what}.{k}", where) for k in CYCLOID_KEYS))
+        raise MotionError(f"{where}: {what}: missing {missing}; a cycloid is {CYCLOID_FORM}")
+    c = Cycloid(*(_number(entry[k], f"{what}.{k}", where, f"{k} = 1.0") for k in CYCLOID_KEYS))
     if not c.t1 > c.t0:
         raise MotionError(f"{where}: {what}: t1 = {c.t1:g} s must be later than t0 = {c.t0:g} s")
     if c.t0 < 0:
@@ -325,8 +327,12 @@ def _cycloid(entry, what: str, where: str) -> Cycloid:
     return c
 
 
-def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> int:
-    what = f"[[joint]] #{k}"
+def _joint_list(names: dict) -> str:
+    return ", ".join(f"{i} {names[i]!r}" for i in sorted(names))
+
+
+def _joint_index(entry: dict, what: str, joints: int, names: dict, where: str) -> int:
+    """The joint (1..n) an entry [[joint]] names by ``index`` and/or ``name``."""
     if "index" not in entry and "name" not in entry:
         raise MotionError(
             f"{where}: {what}: give its `index` (1..{joints}, chain order)" + (" or its `name`" if names else "")
@@ -335,7 +341,9 @@ def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> i
     if "index" in entry:
         index = entry["index"]
         if not isinstance(index, int) or isinstance(index, bool):
-            raise MotionError(f"{where}: {what}: index = {index!r}: must be a whole number 1..{joints}")
+            raise MotionError(
+                f"{where}: {what}: index = {index!r}: must be a whole number 1..{joints}, as in index = 1"
+            )
         if not 1 <= index <= joints:
             raise MotionError(
                 f"{where}: {what}: unknown joint index {index}: the FMU has {joints} joints "
@@ -348,10 +356,14 @@ def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> i
             raise MotionError(
                 f"{where}: {what}: name = {name!r}: the FMU names no joints; give `index` (1..{joints}, chain order)"
             )
+        if not isinstance(name, str):
+            raise MotionError(
+                f"{where}: {what}: name = {name!r}: must be a joint's name in quotes, as in "
+                f'name = "{names[min(names)]}"'
+            )
         if name not in by_name:
             raise MotionError(
-                f"{where}: {what}: unknown joint name {name!r}; the FMU's joints are "
-                + ", ".join(f"{i} {names[i]!r}" for i in sorted(names))
+                f"{where}: {what}: unknown joint name {name!r}; the FMU's joints are {_joint_list(names)}"
             )
         if index is not None and by_name[name] != index:
             raise MotionError(f"{where}: {what}: index = {index} but name = {name!r} is joint {by_name[name]}")
@@ -359,26 +371,83 @@ def _joint_index(entry: dict, k: int, joints: int, names: dict, where: str) -> i
     return index
 
 
-def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle) -> CycloidMotion:
+def _table_index(key: str, joints: int, names: dict, where: str) -> int:
+    """The joint (1..n) a table [joints.<key>] names: a joint name of the FMU, else an index 1..n."""
+    by_name = {v: i for i, v in names.items()}
+    if key in by_name:
+        return by_name[key]
+    if key.isascii() and key.isdigit():
+        if not 1 <= int(key) <= joints:
+            raise MotionError(
+                f"{where}: [joints.{key}]: unknown joint index {key}: the FMU has {joints} joints "
+                f"(index 1..{joints}, chain order)"
+            )
+        return int(key)
+    if not names:
+        raise MotionError(
+            f"{where}: [joints.{key}]: unknown joint {key!r}: the FMU names no joints; "
+            f"name them by index, [joints.1] .. [joints.{joints}] (chain order)"
+        )
+    raise MotionError(
+        f"{where}: [joints.{key}]: unknown joint {key!r}; the FMU's joints are {_joint_list(names)} "
+        f"(or their index 1..{joints})"
+    )
+
+
+def _entries(doc: dict, joints: int, names: dict, where: str) -> list:
+    """(what, i, entry) for every per-joint entry of a motion file, in the order written:
+    the [[joint]] array (``what`` "[[joint]] #k") and the [joints.<name>] tables."""
+    out = []
     entries = doc.get("joint", [])
+    if isinstance(entries, dict):
+        raise MotionError(
+            f"{where}: [joint] is a single table: write [[joint]] (double brackets) before each joint's entry, "
+            f"or [joints.<name>] tables"
+        )
     if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
-        raise MotionError(f"{where}: `joint` must be an array of tables ([[joint]] ... )")
-    segments, hold, seen = [[] for _ in range(joints)], [0.0] * joints, {}
+        raise MotionError(
+            f"{where}: joint = {entries!r}: must be an array of tables, [[joint]] (double brackets) before each "
+            f"joint's entry"
+        )
     for k, entry in enumerate(entries, 1):
+        what = f"[[joint]] #{k}"
         unknown = [key for key in entry if key not in JOINT_KEYS]
         if unknown:
-            raise MotionError(f"{where}: [[joint]] #{k}: unknown key(s) {unknown}; a joint has {list(JOINT_KEYS)}")
-        i = _joint_index(entry, k, joints, names, where)
+            raise MotionError(f"{where}: {what}: unknown key(s) {unknown}; a joint has {list(JOINT_KEYS)}")
+        out.append((what, _joint_index(entry, what, joints, names, where), entry))
+    table = doc.get("joints", {})
+    if not isinstance(table, dict):
+        return out  # the number of joints, checked by load_motion
+    for key, entry in table.items():
+        what = f"[joints.{key}]"
+        if not isinstance(entry, dict):
+            form = f"hold = {entry!r}" if is_finite_number(entry) else f"cycloid = {CYCLOID_FORM} or hold = 0.5"
+            raise MotionError(
+                f"{where}: joints.{key} = {entry!r}: must be a table of the joint's motion, as in {what} with {form}"
+            )
+        unknown = [k for k in entry if k not in MOTION_OF_JOINT]
+        if unknown:
+            raise MotionError(
+                f"{where}: {what}: unknown key(s) {unknown}; a [joints.<name>] table has {list(MOTION_OF_JOINT)} "
+                f"(the table's name is the joint's)"
+            )
+        out.append((what, _table_index(key, joints, names, where), entry))
+    return out
+
+
+def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle) -> CycloidMotion:
+    segments, hold, seen = [[] for _ in range(joints)], [0.0] * joints, {}
+    for given, i, entry in _entries(doc, joints, names, where):
         what = f"joint {i}" + (f" ({names[i]!r})" if i in names else "")
         if i in seen:
-            raise MotionError(f"{where}: {what} is given twice ([[joint]] #{seen[i]} and #{k})")
-        seen[i] = k
+            raise MotionError(f"{where}: {what} is given twice ({seen[i]} and {given}); give it once")
+        seen[i] = given
         if "cycloid" in entry and "hold" in entry:
             raise MotionError(
                 f"{where}: {what}: give either `cycloid` or `hold` (a cycloid starts at its q0 and holds it until t0)"
             )
         if "hold" in entry:
-            hold[i - 1] = _number(entry["hold"], f"{what}: hold", where)
+            hold[i - 1] = _number(entry["hold"], f"{what}: hold", where, "hold = 0.5")
         if "cycloid" in entry:
             raw = entry["cycloid"]
             raw = raw if isinstance(raw, list) else [raw]
@@ -506,29 +575,46 @@ def load_motion(path, joints: int, names: dict | None = None):
     unknown = [k for k in doc if k not in MOTION_KEYS]
     if unknown:
         raise MotionError(f"{where}: unknown key(s) {unknown}; a motion file has {list(MOTION_KEYS)}")
-    if "joints" in doc and doc["joints"] != joints:
-        raise MotionError(f"{where}: written for joints = {doc['joints']!r}, but the FMU has {joints} joints")
+    if "description" in doc and not isinstance(doc["description"], str):
+        raise MotionError(
+            f'{where}: description = {doc["description"]!r}: must be text in quotes, as in description = "pick"'
+        )
+    per_joint = "joint" in doc or isinstance(doc.get("joints"), dict)  # [[joint]] entries or [joints.<name>] tables
+    if "joints" in doc and not isinstance(doc["joints"], dict):
+        count = doc["joints"]
+        if not isinstance(count, int) or isinstance(count, bool):
+            raise MotionError(
+                f"{where}: joints = {count!r}: must be the FMU's number of joints, as in joints = {joints}, "
+                f"or a table per joint, as in [joints.{names.get(1, 1)}] with cycloid = {CYCLOID_FORM} or hold = 0.5"
+            )
+        if count != joints:
+            raise MotionError(f"{where}: written for joints = {count!r}, but the FMU has {joints} joints")
     stop = None
     if "end" in doc:
-        stop = _number(doc["end"], "end", where)
+        stop = _number(doc["end"], "end", where, "end = 2.0")
         if stop <= 0:
             raise MotionError(f"{where}: end = {stop:g} s: must be positive")
-    settle = _number(doc.get("settle", SETTLE), "settle", where)
+    settle = _number(doc.get("settle", SETTLE), "settle", where, "settle = 0.5")
     if settle < 0:
         raise MotionError(f"{where}: settle = {settle:g} s: must be >= 0")
     if "csv" in doc:
-        if "joint" in doc:
-            raise MotionError(f"{where}: give either `csv` or [[joint]] entries, not both")
+        if per_joint:
+            raise MotionError(f"{where}: give either `csv` or per-joint entries ([[joint]], [joints.<name>]), not both")
         if not isinstance(doc["csv"], str) or not doc["csv"]:
-            raise MotionError(f"{where}: csv = {doc['csv']!r}: must be the path of a CSV file")
+            raise MotionError(
+                f'{where}: csv = {doc["csv"]!r}: must be the path of a CSV file, as in csv = "motion.csv"'
+            )
         boundary = doc.get("boundary", "not-a-knot")
         if boundary not in BOUNDARIES:
             raise MotionError(f"{where}: boundary = {boundary!r}: must be one of {list(BOUNDARIES)}")
         return _csv_motion(path.parent / doc["csv"], joints, names, where, boundary, stop, settle)
     if "boundary" in doc:
         raise MotionError(f"{where}: `boundary` applies to a `csv` motion only")
-    if "joint" not in doc:
-        raise MotionError(f'{where}: no motion: give [[joint]] entries (cycloid or hold) or csv = "file.csv"')
+    if not per_joint:
+        raise MotionError(
+            f"{where}: no motion: give [[joint]] entries or [joints.<name>] tables (cycloid or hold), "
+            f'or csv = "file.csv"'
+        )
     return _joint_motion(doc, joints, names, where, stop, settle)
 
 

@@ -8,6 +8,10 @@
   largest values (measured 2.95e-7 and 1.46e-4); SciPy's evaluation of the spline equals the
   hand-written one it replaced to 1e-12 (measured 2.1e-16) and keeps each boundary condition;
 * every refusal with its message;
+* joints named as in a model file, [joints.<name>] (or [joints.<index>]): the same motion as
+  the [[joint]] entries, bit for bit also through the iiwa FMU; one-line refusals for an
+  unknown name (listing the FMU's joints), a joint given in both forms, a value of the wrong
+  type (with the right form);
 * through the real FMU: `stickslip simulate --motion examples/motions/reference.toml` writes
   a CSV byte-identical to the default run's; the sampled reference (CSV, spline) agrees with it
   to 5e-8 m in eps (measured 8.3e-9 m) with the same stiction counts; `stickslip sweep
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -301,7 +306,7 @@ REFUSED_TOML = {
     ),
     "joint twice": (
         f"[[joint]]\nindex = 2\n{CYC}\n[[joint]]\nindex = 2\nhold = 1.0\n",
-        "joint 2 is given twice ([[joint]] #1 and #2)",
+        "joint 2 is given twice ([[joint]] #1 and [[joint]] #2); give it once",
     ),
     "cycloid and hold": (f"[[joint]]\nindex = 1\nhold = 0.3\n{CYC}\n", "joint 1: give either `cycloid` or `hold`"),
     "segments overlap": (
@@ -322,7 +327,7 @@ REFUSED_TOML = {
     ),
     "name without names": (f'[[joint]]\nname = "shoulder"\n{CYC}\n', "name = 'shoulder': the FMU names no joints"),
     "no motion": ('description = "nothing"\n', "no motion: give [[joint]] entries"),
-    "csv and joints": (f'csv = "m.csv"\n[[joint]]\nindex = 1\n{CYC}\n', "give either `csv` or [[joint]] entries"),
+    "csv and joints": (f'csv = "m.csv"\n[[joint]]\nindex = 1\n{CYC}\n', "give either `csv` or per-joint entries"),
     "boundary unknown": (
         'csv = "m.csv"\nboundary = "natural"\n',
         "boundary = 'natural': must be one of ['not-a-knot', 'rest']",
@@ -403,6 +408,173 @@ def test_named_joint_refusals(tmp_path):
     path = write(tmp_path / "m.toml", f'[[joint]]\nindex = 1\nname = "b"\n{CYC}\n')
     with pytest.raises(MotionError, match="index = 1 but name = 'b' is joint 2"):
         load_motion(path, 2, names)
+
+
+# ---------------------------------------------------------------------------
+# [joints.<name>]: the model file's form
+
+
+JOINTS_BY_NAME = """
+[joints.b]
+cycloid = [{ q0 = 0.3, q1 = 0.9, t0 = 0.0, t1 = 1.0 }, { q0 = 0.9, q1 = 0.3, t0 = 1.5, t1 = 2.5 }]
+
+[joints.3]
+hold = -1.5
+"""
+JOINTS_BY_ENTRY = """
+[[joint]]
+name = "b"
+cycloid = [{ q0 = 0.3, q1 = 0.9, t0 = 0.0, t1 = 1.0 }, { q0 = 0.9, q1 = 0.3, t0 = 1.5, t1 = 2.5 }]
+
+[[joint]]
+index = 3
+hold = -1.5
+"""
+
+
+def test_joints_tables_give_the_same_motion_as_joint_entries(tmp_path):
+    """[joints.<name>] (by name, or by index where the FMU names none) is the [[joint]] entry's motion."""
+    names = {1: "a", 2: "b", 3: "c"}
+    tables = load_motion(write(tmp_path / "tables.toml", JOINTS_BY_NAME), 3, names)
+    entries = load_motion(write(tmp_path / "entries.toml", JOINTS_BY_ENTRY), 3, names)
+    assert tables.stop_time == entries.stop_time == 3.0
+    for t in np.arange(0.0, 3.0, 1e-3):
+        assert tables(t) == entries(t), t
+    assert tables(0.5)[0][2] == -1.5 and tables(0.5)[0][0] == 0.0
+    # the two forms side by side, for different joints
+    mixed = load_motion(
+        write(tmp_path / "mixed.toml", "[[joint]]\nindex = 3\nhold = -1.5\n[joints.b]\n" + CYC), 3, names
+    )
+    assert mixed(0.5)[0] == [0.0, 0.5 - math.sin(TAU * 0.5) / TAU, -1.5]
+
+
+REFUSED_JOINTS = {
+    "unknown name": (
+        f"[joints.elbow]\n{CYC}\n",
+        "[joints.elbow]: unknown joint 'elbow'; the FMU's joints are 1 'a', 2 'b', 3 'c' (or their index 1..3)",
+    ),
+    "index out of range": (f"[joints.4]\n{CYC}\n", "[joints.4]: unknown joint index 4: the FMU has 3 joints"),
+    "both forms for one joint": (
+        f'[[joint]]\nname = "b"\nhold = 0.1\n[joints.b]\n{CYC}\n',
+        "joint 2 ('b') is given twice ([[joint]] #1 and [joints.b]); give it once",
+    ),
+    "name and index for one joint": (
+        f"[joints.2]\nhold = 0.1\n[joints.b]\n{CYC}\n",
+        "joint 2 ('b') is given twice ([joints.2] and [joints.b])",
+    ),
+    "not a table": (
+        "[joints]\nb = 0.5\n",
+        "joints.b = 0.5: must be a table of the joint's motion, as in [joints.b] with hold = 0.5",
+    ),
+    "name inside": (
+        f'[joints.b]\nname = "b"\n{CYC}\n',
+        "[joints.b]: unknown key(s) ['name']; a [joints.<name>] table has ['cycloid', 'hold'] (the table's name",
+    ),
+    "joints count of the wrong type": (
+        f'joints = "3"\n[[joint]]\nindex = 1\n{CYC}\n',
+        "joints = '3': must be the FMU's number of joints, as in joints = 3, or a table per joint, "
+        "as in [joints.a] with cycloid = { q0 = ..., q1 = ..., t0 = ..., t1 = ... } or hold = 0.5",
+    ),
+    "hold not a number": (
+        '[joints.a]\nhold = "up"\n',
+        "joint 1 ('a'): hold = 'up': must be a finite number, as in hold = 0.5",
+    ),
+    "cycloid not a table": (
+        "[joints.a]\ncycloid = 1.0\n",
+        "joint 1 ('a'): cycloid = 1.0: must be a table { q0 = ..., q1 = ...",
+    ),
+    "cycloid value not a number": (
+        "[joints.a]\ncycloid = { q0 = 0.0, q1 = '1', t0 = 0.0, t1 = 1.0 }\n",
+        "joint 1 ('a'): cycloid.q1 = '1': must be a finite number, as in q1 = 1.0",
+    ),
+    "name not a string": (
+        f"[[joint]]\nname = 2\n{CYC}\n",
+        'name = 2: must be a joint\'s name in quotes, as in name = "a"',
+    ),
+    "joint a single table": (
+        f"[joint]\nindex = 1\n{CYC}\n",
+        "[joint] is a single table: write [[joint]] (double brackets)",
+    ),
+    "csv and joints tables": (f'csv = "m.csv"\n[joints.a]\n{CYC}\n', "give either `csv` or per-joint entries"),
+}
+
+
+@pytest.mark.parametrize("case", list(REFUSED_JOINTS))
+def test_joints_tables_refused(tmp_path, case):
+    text, message = REFUSED_JOINTS[case]
+    path = write(tmp_path / "m.toml", text)
+    with pytest.raises(MotionError) as e:
+        load_motion(path, 3, {1: "a", 2: "b", 3: "c"})
+    assert str(e.value).startswith(f"motion file {path}: ") and "\n" not in str(e.value)
+    assert message in str(e.value), str(e.value)
+
+
+def test_joints_tables_by_index_on_an_fmu_without_names(tmp_path):
+    path = write(tmp_path / "m.toml", f"[joints.2]\n{CYC}\n")
+    assert load_motion(path, 4)(0.5)[0][1] == 0.5 - math.sin(TAU * 0.5) / TAU
+    path = write(tmp_path / "m.toml", f"[joints.shoulder]\n{CYC}\n")
+    with pytest.raises(
+        MotionError,
+        match=r"unknown joint 'shoulder': the FMU names no joints; name them by index, \[joints.1\] .. \[joints.4\]",
+    ):
+        load_motion(path, 4)
+
+
+def test_the_xarm6_example_in_the_model_files_form_equals_its_joint_entries(tmp_path):
+    """examples/motions/xarm6.toml names its joints as its model file does, [joints.jointN]; written
+    back as [[joint]] entries with `name`, the motion is the same at every millisecond."""
+    names = {i: f"joint{i}" for i in range(1, 7)}
+    source = (EXAMPLES / "xarm6.toml").read_text(encoding="utf-8")
+    entries = re.sub(r"\[joints\.(\w+)\]", r'[[joint]]\nname = "\1"', source)
+    assert source.count("\n[joints.joint") == 4 and "\n[joints." not in entries
+    tables, joint = (
+        load_motion(EXAMPLES / "xarm6.toml", 6, names),
+        load_motion(write(tmp_path / "x.toml", entries), 6, names),
+    )
+    assert tables.stop_time == joint.stop_time == 2.0
+    assert all(tables(t) == joint(t) for t in np.arange(0.0, 2.0005, 1e-3))
+
+
+def _as_joints_tables(text: str) -> str:
+    """A motion file's [[joint]] entries with `name = "X"` rewritten as [joints.X] tables."""
+    return re.sub(r'\[\[joint\]\]\nname = "([^"]+)"[^\n]*\n', r"[joints.\1]\n", text)
+
+
+@pytest.fixture(scope="module")
+def iiwa_fmu():
+    from urdf_fmus import require_iiwa_fmu
+
+    return require_iiwa_fmu()
+
+
+def test_joints_tables_through_the_iiwa_fmu_equal_joint_entries(iiwa_fmu, tmp_path):
+    """examples/motions/kuka_iiwa.toml (its joints by `name` in [[joint]] entries) and the same
+    motion as [joints.lbr_iiwa_joint_i] tables, the model file's form: the same outputs bit for bit."""
+    from stickslip.simulate import run
+
+    source = (EXAMPLES / "kuka_iiwa.toml").read_text(encoding="utf-8")
+    tables = _as_joints_tables(source).replace("joints = 7\n", "")  # `joints` is now the table of joints
+    assert "[[joint]]" not in tables and tables.count("[joints.lbr_iiwa_joint_") == 4
+    path = write(tmp_path / "kuka_iiwa.toml", tables)
+    a, b = run(iiwa_fmu, 0.3, 1e-3, motion=EXAMPLES / "kuka_iiwa.toml"), run(iiwa_fmu, 0.3, 1e-3, motion=path)
+    assert list(a) == list(b) and len(a["time"]) == 301
+    assert all(a[k] == b[k] for k in a)
+    assert b["q[4]"][-1] > b["q[4]"][0] + 1e-3  # the elbow opens
+
+
+def test_joints_tables_refused_naming_the_iiwa_joints(iiwa_fmu, tmp_path):
+    from fmpy import read_model_description
+
+    from stickslip.motion import load_motion_for
+
+    md = read_model_description(str(iiwa_fmu))
+    path = write(tmp_path / "m.toml", f"[joints.shoulder_lift_joint]\n{CYC}\n")
+    with pytest.raises(MotionError) as e:
+        load_motion_for(path, md)
+    names = ", ".join(f"{i} 'lbr_iiwa_joint_{i}'" for i in range(1, 8))
+    assert f"[joints.shoulder_lift_joint]: unknown joint 'shoulder_lift_joint'; the FMU's joints are {names}" in str(
+        e.value
+    )
 
 
 # ---------------------------------------------------------------------------
