@@ -43,6 +43,7 @@ from pathlib import Path
 from .convergence import DEFAULT_THRESHOLD
 from .fmu import DEFAULT_FMU, ROOT, LogCapture, communication_points, initialize, input_references
 from .motion import RUN_TIME, MotionError, load_motion_for, motor_joints, reference_inputs
+from .progress import Progress
 
 
 def run(
@@ -60,7 +61,9 @@ def run(
     values set before initialization; ``inputs(t, interval)`` returns (q*, q*', q*'')
     per joint at t (:mod:`stickslip.motion`). ``motion``: the path of a motion file
     (docs/motion.md), checked against this FMU's joints, used instead of ``inputs``; with it
-    ``end = None`` means the file's stop time. Returns a dict: ``time`` and every output by
+    ``end = None`` means the file's stop time. ``progress``: a label for the progress on stderr
+    (:class:`stickslip.progress.Progress`: a bar on a terminal, else a line per 10 % of the
+    steps), None for none. Returns a dict: ``time`` and every output by
     name, as lists (Booleans as 0/1). What the FMU refuses raises fmpy's FMICallException with
     the FMU's logged fmi2Error/fmi2Fatal messages in its attribute ``fmu_messages``.
     """
@@ -91,28 +94,26 @@ def run(
         # One tuple per communication point; split into columns at the end.
         rows.append((t, *slave.getReal(real_vrs), *(1 if x else 0 for x in slave.getBoolean(bool_vrs))))
 
+    running = None
     try:
         slave.instantiate(callbacks=log.callbacks)
         initialize(slave, md, parameters or {}, in_vrs, inputs, interval)
         record(0.0)
-        steps = round(end / interval)
-        wall = time.perf_counter()
-        for k, t in communication_points(slave, in_vrs, inputs, end, interval):
-            record(t)
-            if progress and k % max(1, steps // 10) == 0:
-                print(
-                    f"\r{progress}: t = {t:.3f} s of {end} s ({time.perf_counter() - wall:.1f} s wall)",
-                    end="",
-                    file=sys.stderr,
-                    flush=True,
-                )
         if progress:
-            print(file=sys.stderr)
+            # "{desc}": the label goes in as a value, so braces in it (a path) are no format fields
+            line = "{desc}: {percent:3d} % (t = {t:.3f} s of " + f"{end:g}" + " s, {elapsed:.1f} s wall)"
+            running = Progress(round(end / interval), line, unit="step", desc=progress)
+        for _, t in communication_points(slave, in_vrs, inputs, end, interval):
+            record(t)
+            if running is not None:
+                running.advance(t=t)
         slave.terminate()
     except FMICallException as e:
         e.fmu_messages = [m for (_, status, _, m) in log.records if status >= 3]
         raise
     finally:
+        if running is not None:
+            running.close()
         slave.freeInstance()
         log.close()
         shutil.rmtree(unzipdir, ignore_errors=True)

@@ -429,7 +429,7 @@ def run_case(
     runs, walls = [], []
     for k, v in enumerate(case.variants):
         label = f"  {case.name} {k + 1}/{len(case.variants)} ({v.label})"
-        # simulate.run's running line rewrites itself with \r: only for a terminal
+        # simulate.run's progress bar on a terminal only: in a log, the line per variant below says enough
         r, wall = simulate(
             v, end, interval, fmu, progress=label if progress and sys.stderr.isatty() else None, motion=motion
         )

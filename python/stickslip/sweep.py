@@ -23,7 +23,6 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import shutil
 import sys
 import time
 from datetime import UTC, datetime
@@ -35,6 +34,7 @@ from .convergence import COLUMNS as CHECK_COLUMNS
 from .convergence import describe, run_checked, selected_runs, spread_columns, tightened
 from .fmu import content_hash, model_description
 from .motion import TableMotion, load_motion_for, reference_inputs
+from .progress import Progress
 from .spec import Spec, SpecError, check_against
 from .variant import metric_names, plugin_name, run_variant
 
@@ -205,60 +205,6 @@ class ResultStore:
         pq.write_table(pa.Table.from_pandas(df, schema=self.schema, preserve_index=False), tmp)
         os.replace(tmp, self.out / "results.parquet")
         return df
-
-
-class Progress:
-    """done / failed / running / rate / ETA: a tqdm bar on a terminal, else a line per 10 %."""
-
-    def __init__(self, total: int, already: int, tty: bool | None = None, stream=None):
-        # sys.stderr as it is now, not as it was at import (a host that
-        # redirects it, pytest's capture, would leave a closed stream).
-        stream = sys.stderr if stream is None else stream
-        self.total, self.already, self.stream = total, already, stream
-        self.done = self.failed = 0
-        self.start = time.monotonic()
-        self.tty = stream.isatty() if tty is None else tty
-        self.next_tenth = 1
-        self.bar = None
-        if self.tty:
-            from tqdm import tqdm
-
-            # a terminal that reports no size (0 x 0) gets 100 x 24: tqdm would draw nothing
-            size = shutil.get_terminal_size((100, 24))
-            self.bar = tqdm(
-                total=total,
-                initial=already,
-                unit="variant",
-                file=stream,
-                smoothing=0.05,
-                ncols=size.columns,
-                nrows=size.lines or 24,
-            )
-
-    def update(self, status: str, running: int) -> None:
-        self.done += 1
-        self.failed += status != "ok"
-        if self.bar is not None:
-            self.bar.set_postfix(failed=self.failed, running=running, refresh=False)
-            self.bar.update(1)
-            return
-        todo = self.total - self.already
-        tenth = self.done * 10 // todo
-        if tenth >= self.next_tenth:
-            elapsed = time.monotonic() - self.start
-            rate = self.done / elapsed if elapsed > 0 else float("nan")
-            eta = (todo - self.done) / rate if rate > 0 else float("nan")
-            print(
-                f"sweep: {10 * tenth:3d} % ({self.already + self.done}/{self.total} done, "
-                f"{self.failed} not ok, {running} running), {rate:.2f} variants/s, ETA {eta:.0f} s",
-                file=self.stream,
-                flush=True,
-            )
-            self.next_tenth = tenth + 1
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def _check_text(convergence: dict | None) -> str:
@@ -435,7 +381,15 @@ def _execute(
         threads = sum(client.nthreads().values())
         stats["workers"] = threads
         window = 4 * threads + 8  # tasks queued at once: enough to keep every thread busy
-        progress = Progress(len(variants), len(variants) - len(todo), progress_tty)
+        progress = Progress(
+            len(variants),
+            "sweep: {percent:3d} % ({done}/{total} done, {failed} not ok, {running} running), "
+            "{rate:.2f} variants/s, ETA {eta:.0f} s",
+            already=len(variants) - len(todo),
+            tty=progress_tty,
+            unit="variant",
+        )
+        failed = 0
         queue = iter(todo)
         pending = {}
 
@@ -481,7 +435,8 @@ def _execute(
                 flow.add(submit(nxt))
             if time.monotonic() - last_threads > 2.0:
                 threads, last_threads = sum(client.nthreads().values()), time.monotonic()
-            progress.update(row["status"], min(len(pending), threads))
+            failed += row["status"] != "ok"
+            progress.advance(failed=failed, running=min(len(pending), threads))
         stats["seconds"] = time.perf_counter() - start
     finally:
         if progress is not None:
