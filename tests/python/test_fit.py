@@ -348,10 +348,6 @@ def _rerun_from_fitted_toml(spec_source, out, experiment_index: int = 0) -> dict
     return rms
 
 
-@pytest.mark.xfail(
-    reason="fitted.toml's [known] is one table for all experiments: the 12 kg run's m[3] replaces the 8 kg one",
-    strict=True,
-)
 def test_fitted_toml_reproduces_each_of_two_experiments(two_experiments):
     """fitted.toml must let each experiment be rerun as fitted: with its values, each
     experiment's residual rms is fit.json's to 1e-9."""
@@ -450,10 +446,6 @@ def test_fitted_toml_reproduces_the_fitted_run(small_fit):
         assert _rel(rms, reported[key]) < 1e-9, (key, rms, reported[key])
 
 
-@pytest.mark.xfail(
-    reason="fitted.toml does not carry the fit's [options] error_tolerance, so its values rerun at 5e-4",
-    strict=True,
-)
 def test_fitted_toml_reproduces_a_fit_at_a_tighter_error_tolerance(tmp_path):
     """A fit whose runs use [options] error_tolerance = 1e-5: fitted.toml must say so (a
     --set or entry of error_tolerance), so that its values rerun the fitted run: residual
@@ -646,30 +638,28 @@ def _ragged(columns):
     return "\n".join(lines) + "\n"
 
 
-# Found by the fuzz test below: load() raises TypeError or ValueError (a traceback, exit 1)
-# where a value has the wrong type; pandas' message of a ragged row ends in a newline (two
-# lines on stderr); an error_tolerance the FMU refuses passes the SPEC check and every run
-# is refused (exit 1, "no start reached a finite cost").
-CRASH = pytest.mark.xfail(reason="spec.load: a wrong type raises TypeError/ValueError, not FitSpecError", strict=True)
+# Found by the fuzz test below (and fixed): values of the wrong type, a ragged CSV row
+# (pandas' message spans two lines), an error_tolerance outside the FMU's range.
+
 BAD_TYPES = [
-    ("time-not-a-string", lambda d: _exp(d).update(time=1.5), None, ["time"], CRASH),
-    ("input-column-not-a-string", lambda d: _exp(d)["inputs"].update({"q_star[1]": 5}), None, ["q_star[1]"], CRASH),
-    ("bounds-not-numbers", lambda d: _est(d).update(bounds=["a", 0.2]), None, ["mu_k[1]", "bounds"], CRASH),
-    ("fmu-not-a-string", lambda d: d.update(fmu=[1]), None, ["fmu"], CRASH),
-    ("data-not-a-string", lambda d: _exp(d).update(data=5), None, ["data"], CRASH),
+    ("time-not-a-string", lambda d: _exp(d).update(time=1.5), None, ["time"], ()),
+    ("input-column-not-a-string", lambda d: _exp(d)["inputs"].update({"q_star[1]": 5}), None, ["q_star[1]"], ()),
+    ("bounds-not-numbers", lambda d: _est(d).update(bounds=["a", 0.2]), None, ["mu_k[1]", "bounds"], ()),
+    ("fmu-not-a-string", lambda d: d.update(fmu=[1]), None, ["fmu"], ()),
+    ("data-not-a-string", lambda d: _exp(d).update(data=5), None, ["data"], ()),
     (
         "ragged-csv-row",
         None,
         _ragged,
         ["run.csv", "line 11"],
-        pytest.mark.xfail(reason="pandas' ParserError message ends in a newline: two lines on stderr", strict=True),
+        (),
     ),
     (
         "error-tolerance-out-of-range",
         lambda d: d["options"].update(error_tolerance=0.5),
         None,
         ["error_tolerance"],
-        pytest.mark.xfail(reason="[options] error_tolerance is not checked against the FMU's (0, 0.1]", strict=True),
+        (),
     ),
 ]
 
@@ -754,7 +744,6 @@ def test_nan_rows_are_dropped_only_when_asked(tmp_path, short_run, capsys):
     assert (out / "fit.json").is_file()
 
 
-@pytest.mark.xfail(reason="the dropped rows are not named in report.md or fit.json", strict=True)
 def test_dropped_rows_are_named_in_the_result(tmp_path, short_run):
     """spec.py: rows with NaN samples are dropped "(named in the report)": report.md or
     fit.json names lines 7 and 9."""
@@ -922,11 +911,6 @@ def _mutate_toml(text: str, rng: random.Random) -> str:
     return "\n".join(lines) + "\n"
 
 
-@pytest.mark.xfail(
-    reason="spec.load raises TypeError/ValueError for values of the wrong type (time, inputs, bounds, fmu, data) "
-    "and passes on pandas' two-line ParserError message",
-    strict=True,
-)
 def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_run):
     """200 seeded mutations of a valid SPEC (as a dict and as TOML: keys deleted or renamed,
     values of the wrong type, NaN, ±inf, huge numbers, strings) and of its data file (rows

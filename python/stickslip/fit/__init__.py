@@ -56,6 +56,7 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
 
         client, own_cluster = _client(scheduler, workers)
     try:
+        _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
         segments = [measured_segments(e, spec.options["segment"], flexible) for e in spec.experiments]
         shooting = spec.options["shooting"]
@@ -102,6 +103,28 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
     return result
 
 
+def _probe(spec, payloads: list, fmu_data: bytes, digest: str) -> None:
+    """Each experiment's first step with its known parameters and settings, and the estimated
+    ones at their initial values or else the FMU's own: what the FMU refuses with both is
+    the SPEC's problem, not a point of the fit, and is reported as such."""
+    from dataclasses import replace
+
+    from .runner import run
+
+    settings = {} if spec.options["error_tolerance"] is None else {"error_tolerance": spec.options["error_tolerance"]}
+    initial = {e.name: e.initial for e in spec.estimates}
+    for e, payload in zip(spec.experiments, payloads, strict=True):
+        short = replace(payload, time=payload.time[:2])
+        result = run(digest, short, {**initial, **settings}, fmu_data=fmu_data)
+        if result.status != "ok":  # the initial point may be refused; the known values may not
+            result = run(digest, short, settings, fmu_data=fmu_data)
+        if result.status != "ok":
+            raise FitSpecError(
+                f"{spec.source}: experiment {e.name!r}: the FMU {result.status} its first step with the known "
+                f"parameters and settings: {' '.join(result.message.split())}"
+            )
+
+
 def _cores(client) -> int:
     if client is None:
         return 1
@@ -125,7 +148,9 @@ def _summarize(
     J3, _ = jacobian(problem, z, r, "single", 3.0 * options["diff_step"])
     unc3 = uncertainty(problem, z, r, J3, options)
     with np.errstate(invalid="ignore", divide="ignore"):
-        se_change = float(np.nanmax(np.abs(unc3.std_error / unc.std_error - 1.0)))
+        change = np.abs(unc3.std_error / unc.std_error - 1.0)
+    finite = change[np.isfinite(change)]
+    se_change = float(finite.max()) if len(finite) else math.nan
     theta = transform.theta(z)
     names = [e.name for e in spec.estimates]
     warnings = []
@@ -225,6 +250,7 @@ def _summarize(
             "equation_error_stage": notes,
             "jacobian_notes": jac_notes,
         },
+        "dropped_rows": {e.name: e.dropped_rows for e in spec.experiments if e.dropped_rows},
         "failed_runs": {
             "count": len(failures),
             "by_status": {st: sum(1 for f in failures if f["status"] == st) for st in {f["status"] for f in failures}},

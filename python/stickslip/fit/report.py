@@ -53,26 +53,27 @@ def _jsonable(x):
 
 
 def fitted_toml(result: dict, spec) -> str:
-    """The estimates as ``stickslip simulate --set`` values and as a [parameters] table."""
+    """The estimates as ``stickslip simulate --set`` values and as a [parameters] table; the
+    fit's error_tolerance in [settings]; each experiment's known values in [known.<name>]."""
     values = {name: p["value"] for name, p in result["parameters"].items()}
-    known = {}
+    settings = {} if spec.options["error_tolerance"] is None else {"error_tolerance": spec.options["error_tolerance"]}
+    lines = ["# The fitted parameters (stickslip fit). To rerun a fitted experiment:"]
     for e in spec.experiments:
-        known.update(e.parameters)
-    sets = " ".join(f"--set '{n}={v:.12g}'" for n, v in {**known, **values}.items())
-    lines = [
-        "# The fitted parameters (stickslip fit). To rerun the fitted experiment:",
-        f"#   stickslip simulate --fmu {spec.fmu} {sets}",
-        "# (with the experiment's inputs as a motion file: --motion MOTION.toml).",
-        "# [parameters]: estimate with its standard error; [known]: the experiments' given values.",
+        sets = " ".join(f"--set '{n}={v:.17g}'" for n, v in {**settings, **e.parameters, **values}.items())
+        lines.append(f"#   {e.name}: stickslip simulate --fmu {spec.fmu} {sets}")
+    lines += [
+        "# with the experiment's inputs as a motion file (--motion MOTION.toml).",
+        "# [parameters]: the estimates (full precision) with their standard errors;",
+        "# [settings]: what the fit ran the FMU with; [known.<experiment>]: each experiment's given values.",
         "[parameters]",
     ]
     for name, p in result["parameters"].items():
-        se = p["std_error"]
-        lines.append(f'"{name}" = {p["value"]:.12g}  # ± {se:.3g} (1 standard error)')
-    if known:
-        lines.append("")
-        lines.append("[known]")
-        lines += [f'"{n}" = {v:.12g}' for n, v in known.items()]
+        lines.append(f'"{name}" = {p["value"]!r}  # ± {p["std_error"]:.3g} (1 standard error)')
+    if settings:
+        lines += ["", "[settings]"] + [f'"{n}" = {v!r}' for n, v in settings.items()]
+    for e in spec.experiments:
+        if e.parameters:
+            lines += ["", f'[known."{e.name}"]'] + [f'"{n}" = {float(v)!r}' for n, v in e.parameters.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -111,7 +112,7 @@ def report_md(result: dict, spec, figures: list) -> str:
         "|---|" + "---|" * len(names),
     ]
     for n, row in zip(names, result["correlation"]["matrix"], strict=True):
-        lines.append(f"| `{n}` | " + " | ".join(f"{c:+.3f}" if c is not None else "–" for c in row) + " |")
+        lines.append(f"| `{n}` | " + " | ".join(_corr(c) for c in row) + " |")
     lines += ["", "## Starts", "", "| start | cost (multiple shooting) | cost | status |", "|---|---|---|---|"]
     for s in result["starts"]:
         ms = f"{s['multiple_shooting_cost']:.6g}" if s["multiple_shooting_cost"] is not None else "–"
@@ -127,10 +128,16 @@ def report_md(result: dict, spec, figures: list) -> str:
         f"- Noise scale σ̂² = {m['sigma_scale']:.4g} "
         + ("(absolute sigmas: 1)" if m["absolute_sigma"] else "(from the residuals; the sigmas are relative)")
     )
+    for name, rows in result.get("dropped_rows", {}).items():
+        lines.append(f"- Experiment {name!r}: rows dropped for NaN samples (drop_nan): lines {rows}")
     if result["failed_runs"]["count"]:
         lines.append(f"- Runs the FMU refused or discarded during the fit: {result['failed_runs']['by_status']}")
     lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"
+
+
+def _corr(c) -> str:
+    return f"{c:+.3f}" if c is not None and math.isfinite(c) else "–"
 
 
 def _plots(result: dict, spec, out: Path) -> list:
@@ -145,6 +152,8 @@ def _plots(result: dict, spec, out: Path) -> list:
     data = Path(spec.fmu).read_bytes()
     digest = content_hash(data)
     values = {n: p["value"] for n, p in result["parameters"].items()}
+    if spec.options["error_tolerance"] is not None:
+        values["error_tolerance"] = spec.options["error_tolerance"]
     md = spec.model_description
     sticks = [v.name for v in md.modelVariables if v.name.startswith("stick[") and v.causality == "output"]
     for e in spec.experiments:
@@ -197,7 +206,7 @@ def _plots(result: dict, spec, out: Path) -> list:
     ax.set_yticks(range(len(names)), names)
     for a in range(len(names)):
         for b in range(len(names)):
-            ax.text(b, a, f"{corr[a, b]:+.2f}", ha="center", va="center", fontsize=8)
+            ax.text(b, a, _corr(corr[a, b]), ha="center", va="center", fontsize=8)
     fig.colorbar(im, ax=ax, shrink=0.8)
     ax.set_title("correlation of the estimates")
     fig.tight_layout()

@@ -67,6 +67,7 @@ OPTION_DEFAULTS = {
     "max_evaluations": 200,
     "diff_step": 1e-3,
 }
+MAX_STARTS = 1000
 
 
 class FitSpecError(ValueError):
@@ -160,6 +161,14 @@ def _table(value, where: str) -> dict:
     return value
 
 
+def _text(value, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise FitSpecError(
+            f'{where} = {value!r}: must be a string, e.g. {where.rsplit(".", 1)[-1].split(" ")[-1]} = "..."'
+        )
+    return value
+
+
 def _number(value, where: str) -> float:
     if isinstance(value, bool) or not is_finite_number(value):
         raise FitSpecError(f"{where} = {value!r}: must be a finite number")
@@ -170,7 +179,7 @@ def _checked(doc: dict, source: str, base: Path) -> FitSpec:
     from fmpy import read_model_description
 
     _unknown(doc, TOP_KEYS, source)
-    fmu = Path(doc.get("fmu", DEFAULT_FMU))
+    fmu = Path(_text(doc["fmu"], f"{source}: fmu") if "fmu" in doc else DEFAULT_FMU)
     if not fmu.is_absolute():
         fmu = base / fmu
     if not fmu.is_file():
@@ -181,6 +190,8 @@ def _checked(doc: dict, source: str, base: Path) -> FitSpec:
         raise FitSpecError(f"{source}: fmu = {str(fmu)!r}: not a readable FMU: {e}") from None
     variables = {v.name: v for v in md.modelVariables}
     options = _options(doc.get("options", {}), f"{source}: [options]")
+    if options["error_tolerance"] is not None and "error_tolerance" in variables:
+        _in_range(variables["error_tolerance"], options["error_tolerance"], f"{source}: [options] error_tolerance")
     experiments = doc.get("experiment")
     if not experiments:
         raise FitSpecError(f"{source}: no [[experiment]]: at least one measured run is needed")
@@ -253,15 +264,21 @@ def _options(raw, where: str) -> dict:
         raise FitSpecError(f"{where}: loss = {options['loss']!r}: one of {', '.join(LOSSES)}")
     if options["shooting"] not in SHOOTING:
         raise FitSpecError(f"{where}: shooting = {options['shooting']!r}: one of {', '.join(SHOOTING)}")
-    for key in ("f_scale", "segment", "diff_step"):
-        if _number(options[key], f"{where}: {key}") <= 0:
-            raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be > 0")
+    for key, high in (("f_scale", math.inf), ("segment", math.inf), ("diff_step", 0.1)):
+        if not 0 < _number(options[key], f"{where}: {key}") <= high:
+            raise FitSpecError(
+                f"{where}: {key} = {options[key]!r}: must be > 0" + (f" and <= {high:g}" if high < 1 else "")
+            )
         options[key] = float(options[key])
+    if options["starts"] > MAX_STARTS:
+        raise FitSpecError(f"{where}: starts = {options['starts']}: at most {MAX_STARTS}")
     for key in ("absolute_sigma", "drop_nan"):
         if not isinstance(options[key], bool):
             raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
     if options["error_tolerance"] is not None:
         options["error_tolerance"] = _number(options["error_tolerance"], f"{where}: error_tolerance")
+        if options["error_tolerance"] <= 0:
+            raise FitSpecError(f"{where}: error_tolerance = {options['error_tolerance']:g}: must be > 0")
     return options
 
 
@@ -302,9 +319,9 @@ def _estimates(raw: dict, source: str, variables: dict) -> list:
             bounds = [v.min if v.min is not None else -math.inf, v.max if v.max is not None else math.inf]
         if not isinstance(bounds, list) or len(bounds) != 2:
             raise FitSpecError(f"{where}.bounds = {bounds!r}: must be [low, high]")
+        if any(isinstance(b, bool) or not isinstance(b, (int, float)) or math.isnan(b) for b in bounds):
+            raise FitSpecError(f"{where}.bounds = {bounds!r}: must be two numbers [low, high]")
         low, high = (float(b) for b in bounds)
-        if math.isnan(low) or math.isnan(high):
-            raise FitSpecError(f"{where}.bounds = {bounds!r}: must be numbers")
         if not low < high:
             raise FitSpecError(f"{where}.bounds = [{low:g}, {high:g}]: low must be below high")
         _in_range(v, low, f"{where}.bounds[0]") if math.isfinite(low) else None
@@ -327,12 +344,14 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
     _unknown(raw, EXPERIMENT_KEYS, where)
     if "data" not in raw:
         raise FitSpecError(f"{where}: no `data` (the CSV file of the measured run)")
-    data_path = Path(raw["data"])
+    data_path = Path(_text(raw["data"], f"{where}: data"))
     if not data_path.is_absolute():
         data_path = base / data_path
-    name = str(raw.get("name", data_path.stem))
+    name = _text(raw["name"], f"{where}: name") if "name" in raw else data_path.stem
     where = f"{source}: experiment {name!r}"
-    time_column = raw.get("time", "t")
+    time_column = _text(raw.get("time", "t"), f"{where}: time")
+    for inp, col in _table(raw.get("inputs", {}), f"{where}: inputs").items():
+        _text(col, f"{where}: inputs.{inp!r}")
     inputs = _table(raw.get("inputs", {}), f"{where}: inputs")
     measured = _table(raw.get("measured", {}), f"{where}: measured")
     if not measured:
@@ -367,6 +386,7 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
             raise FitSpecError(
                 f'{where}: measured.{output!r}: needs `column` and `sigma`, e.g. {{ column = "link1", sigma = 1e-6 }}'
             )
+        _text(entry["column"], f"{where}: measured.{output!r}.column")
         sigma = _number(entry["sigma"], f"{where}: measured.{output!r}.sigma")
         if sigma <= 0:
             raise FitSpecError(f"{where}: measured.{output!r}.sigma = {sigma:g}: must be > 0")
@@ -419,8 +439,11 @@ def _read_csv(path: Path, where: str) -> dict:
         frame = pd.read_csv(path, skipinitialspace=True)
     except FileNotFoundError:
         raise FitSpecError(f"{where}: data = {str(path)!r}: no such file") from None
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise FitSpecError(f"{where}: {path.name}: not a readable CSV: {e}") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError) as e:
+        reason = " ".join(str(e).split())
+        raise FitSpecError(f"{where}: {path.name}: not a readable CSV: {reason}") from None
+    except OSError as e:
+        raise FitSpecError(f"{where}: data = {str(path)!r}: cannot read: {e.strerror or e}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
     return {c: pd.to_numeric(frame[c], errors="coerce").to_numpy(dtype=np.float64) for c in frame.columns}
 
@@ -434,7 +457,7 @@ def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path)
     joints, _ = fmu_joints(md)
     motors = motor_joints(md)
     if "motion" in raw:
-        path = Path(raw["motion"])
+        path = Path(_text(raw["motion"], f"{where}: motion"))
         if not path.is_absolute():
             path = base / path
         try:
