@@ -4,7 +4,7 @@
 //! ```text
 //! offset  size  field
 //! 0       8     magic "SSMFMUst"
-//! 8       4     format version (u32) = 1
+//! 8       4     format version (u32) = 3 (VERSION)
 //! 12      16    model hash (u128): model file + variable layout, see description::model_hash
 //! 28      8     payload length L (u64)
 //! 36      L     payload
@@ -18,6 +18,13 @@
 //! parameter and setting variables in layout order (u32 count + values);
 //! the engine [`State`] field by field (per-coordinate fields with n + m
 //! entries, phases as tag + direction bytes, counters as u64).
+//!
+//! Written field by field, not by a serde format crate (bincode, postcard):
+//! this layout is the FMU's versioned interchange format, exchanged between
+//! the linux64, win64 and darwin64 binaries, and such a crate would need
+//! serde on the engine's types (which know nothing of FMI) and leave the
+//! layout to its own versions. The exhaustive destructuring in `put_state`
+//! keeps every field of [`State`] in it.
 
 use super::description::fnv1a_64;
 use super::lifecycle::LifeCycle;
