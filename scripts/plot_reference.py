@@ -22,7 +22,6 @@ of the source study.
 """
 
 import argparse
-import csv
 import re
 import sys
 from pathlib import Path
@@ -32,6 +31,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+import pandas as pd
 from matplotlib.ticker import FixedLocator, MaxNLocator
 
 STICK_COLOR = "tab:red"
@@ -39,27 +39,19 @@ INDEXED = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*\[\s*(\d+)\s*\]\s*$")
 
 
 def read_csv(path):
-    """Return (header list, dict name -> float array)."""
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows:
-        raise SystemExit(f"{path}: empty file")
-    header = [h.strip() for h in rows[0]]
-    body = [r for r in rows[1:] if r and any(c.strip() for c in r)]
-    if not body:
+    """Return (header list, dict name -> float array); Booleans written as true/false (as
+    some masters do) become 1/0, any other cell that is not a number NaN."""
+    try:
+        table = pd.read_csv(path, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise SystemExit(f"{path}: empty file") from None
+    if table.empty:
         raise SystemExit(f"{path}: header but no data rows")
-    data = np.full((len(body), len(header)), np.nan)
-    for k, r in enumerate(body):
-        for j, c in enumerate(r[: len(header)]):
-            c = c.strip()
-            if c:
-                try:
-                    data[k, j] = float(c)
-                except ValueError:
-                    lc = c.lower()
-                    if lc in ("true", "false"):
-                        data[k, j] = 1.0 if lc == "true" else 0.0
-    cols = {h: data[:, j] for j, h in enumerate(header)}
+    header = [str(h).strip() for h in table.columns]
+    cols = {
+        h: pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=float)
+        for h, c in zip(header, table.columns, strict=True)
+    }
     return header, cols
 
 
