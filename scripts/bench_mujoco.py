@@ -45,13 +45,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import statistics
 import subprocess
 import sys
 import time
 import tomllib
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -65,17 +65,22 @@ RIGID_KP = 1e6
 
 
 def mujoco_xml_from_urdf(path, balance_inertia: bool = True) -> str:
-    """The URDF's text made loadable by MuJoCo's compiler (models/urdf/README.md)."""
-    xml = Path(path).read_text(encoding="utf-8")
-    xml = re.sub(r"<(visual|collision)\b.*?</\1>", "", xml, flags=re.S)
-    xml = re.sub(r"<(visual|collision)\b[^>]*/>", "", xml)
-    opts = ' balanceinertia="true"' if balance_inertia else ""
-    xml, count = re.subn(
-        r"(<robot\b[^>]*>)", rf'\1<mujoco><compiler discardvisual="true"{opts}/></mujoco>', xml, count=1
-    )
-    if count != 1:
+    """The URDF's text made loadable by MuJoCo's compiler (models/urdf/README.md): without its
+    visual and collision elements, with a <mujoco><compiler .../></mujoco> extension first."""
+    try:
+        robot = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as e:
+        raise SystemExit(f"{path}: not XML ({e})") from None
+    if robot.tag != "robot":
         raise SystemExit(f"{path}: no <robot> element")
-    return xml
+    for parent in robot.iter():
+        for child in [c for c in parent if c.tag in ("visual", "collision")]:
+            parent.remove(child)
+    compiler = {"discardvisual": "true"} | ({"balanceinertia": "true"} if balance_inertia else {})
+    extension = ElementTree.Element("mujoco")
+    ElementTree.SubElement(extension, "compiler", compiler)
+    robot.insert(0, extension)
+    return ElementTree.tostring(robot, encoding="unicode")
 
 
 def friction_moments(model_path: Path, doc: dict, joint_names: list, pose) -> dict:
