@@ -26,9 +26,7 @@ import argparse
 import json
 import re
 import sys
-import zipfile
 from pathlib import Path
-from xml.etree import ElementTree
 
 import matplotlib
 
@@ -37,28 +35,21 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
 from plot_reference import STICK_COLOR, indexed, plot_with_stick_bar, read_csv, stick_segments
-
-NAMED = re.compile(r"\(`([^`]+)`")
 
 
 def fmu_joints(fmu):
-    """({index: URDF joint name}, set of flexible joint indices) from the FMU's modelDescription."""
-    with zipfile.ZipFile(fmu) as z:
-        root = ElementTree.fromstring(z.read("modelDescription.xml"))
-    names, flexible = {}, set()
-    for v in root.iter("ScalarVariable"):
-        m = re.match(r"^(q_star|k)\[(\d+)\]$", v.get("name", ""))
-        if not m:
-            continue
-        i = int(m.group(2))
-        if m.group(1) == "k":
-            flexible.add(i)
-        else:
-            named = NAMED.search(v.get("description", ""))
-            if named:
-                names[i] = named.group(1)
-    return names, flexible
+    """({index: URDF joint name}, set of flexible joint indices) from the FMU's modelDescription:
+    the names as motion files read them (stickslip.motion.fmu_joints), the flexible joints
+    those with a stiffness k[i]."""
+    from fmpy import read_model_description
+
+    from stickslip.motion import fmu_joints as joint_names
+
+    md = read_model_description(str(fmu))
+    flexible = {int(m.group(1)) for v in md.modelVariables if (m := re.fullmatch(r"k\[(\d+)\]", v.name))}
+    return joint_names(md)[1], flexible
 
 
 def label(i, names):

@@ -26,28 +26,18 @@ import csv
 import subprocess
 import sys
 import tempfile
-import zipfile
 from pathlib import Path
-from xml.etree import ElementTree
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "python"))
-from stickslip.motion import MotionError, load_motion_for  # noqa: E402
+from stickslip.motion import MotionError, fmu_joints, load_motion_for  # noqa: E402
 
 
-def fmu_parameters(fmu):
-    """{name: start value} of the FMU's real parameters, and its number of joints."""
-    with zipfile.ZipFile(fmu) as z:
-        root = ElementTree.fromstring(z.read("modelDescription.xml"))
-    values, n = {}, 0
-    for v in root.iter("ScalarVariable"):
-        name = v.get("name", "")
-        if name.startswith("q_star["):
-            n += 1
-        real = v.find("Real")
-        if real is not None and real.get("start") is not None:
-            values[name] = float(real.get("start"))
-    return values, n
+def fmu_parameters(md):
+    """{name: start value} of the real variables of the FMU whose modelDescription (fmpy) is
+    ``md``, and its number of joints."""
+    values = {v.name: float(v.start) for v in md.modelVariables if v.type == "Real" and v.start is not None}
+    return values, fmu_joints(md)[0]
 
 
 def gravity_torques(binary, model, q):
@@ -77,12 +67,13 @@ def main(argv=None):
     ap.add_argument("--binary", type=Path, default=ROOT / "target" / "release" / "inverse_dynamics")
     args = ap.parse_args(argv)
 
-    params, n = fmu_parameters(args.fmu)
-    flexible = [i for i in range(1, n + 1) if f"k[{i}]" in params]
     from fmpy import read_model_description
 
+    md = read_model_description(str(args.fmu))
+    params, n = fmu_parameters(md)
+    flexible = [i for i in range(1, n + 1) if f"k[{i}]" in params]
     try:
-        q_star = list(load_motion_for(args.motion, read_model_description(str(args.fmu)))(0.0)[0])
+        q_star = list(load_motion_for(args.motion, md)(0.0)[0])
     except MotionError as e:
         print(f"urdf_static_start: {e}", file=sys.stderr)
         return 2
