@@ -184,7 +184,7 @@ fn drive_acceleration_stiffness_is_the_derivative_of_eq_2_1() {
 /// μ(q̇)·L, its margin is d·q̇ when static friction can hold it.
 #[test]
 fn friction_of_each_phase() {
-    let coefficients = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01 };
+    let coefficients = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01, viscous: 0.0 };
     let geometry = ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.07 };
     let friction = JointFriction { coefficients, geometry };
     let lever = 50.0;
@@ -201,7 +201,7 @@ fn friction_of_each_phase() {
         assert!((slip.margin - 0.02).abs() < 1e-15);
     }
     let frictionless_static = JointFriction {
-        coefficients: FrictionCoefficients { mu_static: 0.0, mu_kinetic: 0.0, stribeck_velocity: 0.0 },
+        coefficients: FrictionCoefficients { mu_static: 0.0, mu_kinetic: 0.0, stribeck_velocity: 0.0, viscous: 0.0 },
         geometry,
     };
     assert_eq!(slip_friction(Some(&frictionless_static), lever, 0.1, 1).margin, f64::INFINITY);
@@ -223,7 +223,7 @@ fn friction_of_each_phase() {
 /// along a change of the reaction, away from the kinks of (3.11), (3.15).
 #[test]
 fn friction_load_derivative_is_the_derivative_of_the_contact_law() {
-    let coefficients = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0 };
+    let coefficients = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0, viscous: 0.0 };
     let geometries = [
         ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.05 },
         ContactGeometry::Bearings {
@@ -250,11 +250,49 @@ fn friction_load_derivative_is_the_derivative_of_the_contact_law() {
 
 #[test]
 fn decreasing_friction_characteristic() {
-    let c = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01 };
+    let c = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01, viscous: 0.0 };
     assert_eq!(c.kinetic(0.0), 0.2);
     assert!((c.kinetic(0.01) - (0.12 + 0.08 / std::f64::consts::E)).abs() < 1e-15);
     assert_eq!(c.kinetic(-0.01), c.kinetic(0.01));
     assert!((c.kinetic(1.0) - 0.12).abs() < 1e-15);
     let constant = FrictionCoefficients { stribeck_velocity: 0.0, ..c };
     assert_eq!(constant.kinetic(0.0), 0.12);
+}
+
+/// The viscous part b·q̇ of a moving joint's friction: on top of the dry
+/// friction of a slipping and of a prescribed joint, in the velocity slope
+/// (∂F^f/∂q̇ = d·L·μ'(q̇) + b, against a central difference), absent from a
+/// stuck joint's friction and margin; with b = 0 each law gives the study's
+/// value bit for bit, the sign of a zero included.
+#[test]
+fn viscous_part_of_the_friction_law() {
+    let dry = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01, viscous: 0.0 };
+    let viscous = FrictionCoefficients { viscous: 35.0, ..dry };
+    let geometry = ContactGeometry::Slider { centre: Vec3::zeros(), a: 0.2, b: 0.07, c: 0.07 };
+    let (with_b, without_b) =
+        (JointFriction { coefficients: viscous, geometry }, JointFriction { coefficients: dry, geometry });
+    let lever = 50.0;
+    for (d, qd) in [(1i8, 0.02), (-1, -0.02), (1, 0.7), (-1, -3.0)] {
+        let slip = slip_friction(Some(&with_b), lever, qd, d);
+        let expected = d as f64 * dry.kinetic(qd) * lever + 35.0 * qd;
+        assert!((slip.force - expected).abs() < 1e-12 * expected.abs(), "{} vs {expected}", slip.force);
+        assert_eq!(slip.margin, slip_friction(Some(&without_b), lever, qd, d).margin);
+        let prescribed = prescribed_friction(Some(viscous), lever, qd);
+        assert!((prescribed - expected).abs() < 1e-12 * expected.abs(), "{prescribed} vs {expected}");
+        let dv = 1e-7 * qd.abs();
+        let central = (slip_friction(Some(&with_b), lever, qd + dv, d).force
+            - slip_friction(Some(&with_b), lever, qd - dv, d).force)
+            / (2.0 * dv);
+        let analytic = slip_friction_velocity_slope(viscous, lever, qd, d);
+        assert!((central - analytic).abs() < 1e-6 * analytic.abs(), "{central} vs {analytic}");
+        assert!((analytic - slip_friction_velocity_slope(dry, lever, qd, d) - 35.0).abs() < 1e-12);
+    }
+    assert_eq!(prescribed_friction(Some(viscous), lever, 0.0), 0.0);
+    assert_eq!(stuck_friction(Some(viscous), lever, 30.0, 25.0), stuck_friction(Some(dry), lever, 30.0, 25.0));
+    // b = 0: the dry law bit for bit, also a dry friction of −0.
+    for (coulomb, v) in [(-3.7, 0.4), (-0.0, 0.5), (0.0, -0.5), (1e-300, -2.0)] {
+        assert_eq!(dry.with_viscous(coulomb, v).to_bits(), f64::to_bits(coulomb));
+    }
+    let no_load = JointFriction { coefficients: dry, geometry };
+    assert_eq!(slip_friction(Some(&no_load), 0.0, 0.3, -1).force.to_bits(), (-0.0f64).to_bits());
 }

@@ -203,6 +203,7 @@ fn reference_file_parses_to_the_rrpr_arm() {
                 assert_eq!(friction.coefficients.mu_kinetic, 0.2, "joint {number}");
                 assert_eq!(friction.coefficients.mu_static, 0.2, "joint {number}");
                 assert_eq!(friction.coefficients.stribeck_velocity, 0.0, "joint {number}");
+                assert_eq!(friction.coefficients.viscous, 0.0, "joint {number}");
                 let geometry_fits = matches!(
                     (joint.kind, friction.geometry),
                     (JointKind::Revolute, ContactGeometry::Bearings { .. })
@@ -414,6 +415,58 @@ fn friction_coefficients_are_checked() {
 
     let e = rejected(&edit_joint(1, "v_s = 0.0", "v_s = -0.01"));
     assert_invalid_parameter(&e, "joint[1].friction.v_s", -0.01, "negative");
+}
+
+/// The viscous part of the friction (`viscous = b`, N·m·s/rad or N·s/m):
+/// read as written, 0 when absent (the study's law), refused naming
+/// `joint[i].friction.viscous` when negative, NaN, infinite, above its
+/// ceiling 1e9 or not a number; tunable as `b_v[i]` on joints with friction only.
+#[test]
+fn viscous_friction_is_read_and_checked() {
+    let text = edit_joint(3, "v_s = 0.0, viscous = 0.0", "v_s = 0.0, viscous = 120.5");
+    let model = Model::from_toml_str(&text).unwrap();
+    assert_eq!(model.joints[2].friction.unwrap().coefficients.viscous, 120.5);
+    assert_eq!(model.parameter(Parameter::Viscous, 2), Some(120.5));
+    assert_eq!(model.parameter(Parameter::Viscous, 0), Some(0.0));
+    assert_eq!(model.parameter(Parameter::Viscous, 1), None, "a joint without friction has no b_v");
+    let absent = Model::from_toml_str(&edit_joint(1, ", viscous = 0.0", "")).unwrap();
+    assert_eq!(absent, Model::reference_rrpr(), "absent is 0");
+
+    for (to, value, reason) in [
+        ("viscous = -1.0", -1.0, "negative"),
+        ("viscous = nan", f64::NAN, "finite"),
+        ("viscous = inf", f64::INFINITY, "finite"),
+        ("viscous = -inf", f64::NEG_INFINITY, "finite"),
+        ("viscous = 1.0e10", 1e10, "[0, 1e9]"),
+    ] {
+        let e = rejected(&edit_joint(1, "viscous = 0.0", to));
+        assert_invalid_parameter(&e, "joint[1].friction.viscous", value, reason);
+    }
+    let at = edit_joint(3, "viscous = 0.0", "viscous = 1.0e9");
+    assert_ceiling(
+        &edit_joint(3, "viscous = 0.0", "viscous = 1.1e9"),
+        "joint[3].friction.viscous",
+        1.1e9,
+        "[0, 1e9]",
+        &at,
+    );
+    let e = rejected(&edit_joint(1, "viscous = 0.0", "viscous = \"2\""));
+    assert_syntax(&e, &["invalid type: string \"2\", expected f64", "viscous", "line 33"]);
+    let e = rejected(&edit_joint(1, "viscous = 0.0", "viscous_b = 2.0"));
+    assert_syntax(&e, &["unknown field `viscous_b`", "`viscous`", "line 33"]);
+
+    let mut model = Model::reference_rrpr();
+    let e = model.set_parameter(Parameter::Viscous, 2, -0.5).unwrap_err();
+    assert_invalid_parameter(&e, "b_v[3]", -0.5, "negative");
+    let e = model.set_parameter(Parameter::Viscous, 0, f64::NAN).unwrap_err();
+    assert_invalid_parameter(&e, "b_v[1]", f64::NAN, "finite");
+    let e = model.set_parameter(Parameter::Viscous, 3, 1.0).unwrap_err();
+    assert_invalid(&e, "b_v[4]", "no such parameter");
+    assert_eq!(model, Model::reference_rrpr());
+    model.set_parameter(Parameter::Viscous, 2, 1e9).unwrap();
+    assert!(model.has_layout_of(&Model::reference_rrpr()), "b_v is tunable: the layout stays");
+    assert_eq!(Parameter::Viscous.range(), Range::JOINT_VISCOUS);
+    assert_eq!(Range::JOINT_VISCOUS, Range::closed(0.0, 1e9));
 }
 
 #[test]

@@ -28,7 +28,12 @@ fn turntable(inertia: f64, stiffness: f64, rotor: Rotor, stiction: Option<f64>, 
     let (friction, gravity) = match stiction {
         Some(mu) => (
             Some(JointFriction {
-                coefficients: FrictionCoefficients { mu_kinetic: mu, mu_static: mu, stribeck_velocity: 0.0 },
+                coefficients: FrictionCoefficients {
+                    mu_kinetic: mu,
+                    mu_static: mu,
+                    stribeck_velocity: 0.0,
+                    viscous: 0.0,
+                },
                 geometry: ContactGeometry::Bearings {
                     reaction_point: Vec3::zeros(),
                     l_a: 0.05,

@@ -18,7 +18,7 @@ use stick_slip_manipulator::{DriveInputs, Phase, Simulator};
 
 const G: f64 = 9.81;
 const FRICTION: FrictionCoefficients =
-    FrictionCoefficients { mu_kinetic: 0.25, mu_static: 0.3, stribeck_velocity: 0.0 };
+    FrictionCoefficients { mu_kinetic: 0.25, mu_static: 0.3, stribeck_velocity: 0.0, viscous: 0.0 };
 
 fn held(sim: &mut Simulator, q_star: f64, duration: f64) {
     let inputs = DriveInputs { q_star: &[q_star], qd_star: &[0.0], qdd_star: &[0.0] };

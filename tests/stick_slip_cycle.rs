@@ -78,7 +78,7 @@ fn steady_stick_slip_cycle_matches_closed_form() {
 
 fn stick_slip_cycle_matches_closed_form(name: &str, integrator: IntegratorSettings) {
     let (m, k, v) = (1.0, 1e4, 0.01);
-    let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.3, stribeck_velocity: 0.0 };
+    let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.3, stribeck_velocity: 0.0, viscous: 0.0 };
     let mut sim = block(m, k, 0.0, friction, integrator);
     let log = drive_at_constant_speed(&mut sim, v, 0.0, 0.35, None);
     let (f_s, f_k) = (0.3 * m * G, 0.2 * m * G);
@@ -123,7 +123,7 @@ fn equal_coefficients_and_damping_settle_into_steady_sliding() {
 
 fn settle_into_steady_sliding(name: &str, integrator: IntegratorSettings) {
     let (m, k, h, v) = (1.0, 1e4, 20.0, 0.01);
-    let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0 };
+    let friction = FrictionCoefficients { mu_kinetic: 0.2, mu_static: 0.2, stribeck_velocity: 0.0, viscous: 0.0 };
     let mut sim = block(m, k, h, friction, integrator);
     let log = drive_at_constant_speed(&mut sim, v, 0.0, 2.0, None);
     // One breakaway at the start, never stuck again.
@@ -159,7 +159,7 @@ fn disturbed_steady_sliding(v: f64, h: f64, friction: FrictionCoefficients, dura
 
 #[test]
 fn decreasing_characteristic_is_stable_above_the_critical_speed_only() {
-    let friction = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01 };
+    let friction = FrictionCoefficients { mu_kinetic: 0.12, mu_static: 0.2, stribeck_velocity: 0.01, viscous: 0.0 };
     let h = 10.0;
     let df = (friction.mu_static - friction.mu_kinetic) * G;
     let v_cr = friction.stribeck_velocity * (df / (h * friction.stribeck_velocity)).ln();

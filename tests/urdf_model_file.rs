@@ -21,7 +21,7 @@
 use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
 use stick_slip_manipulator::algorithms::rnea::{joint_reactions, rnea};
 use stick_slip_manipulator::math::{Mat3, Vec3};
-use stick_slip_manipulator::model::{ContactGeometry, Drive, Rotor};
+use stick_slip_manipulator::model::{ContactGeometry, Drive, Parameter, Rotor};
 use stick_slip_manipulator::stepper::MotorTorques;
 use stick_slip_manipulator::{Data, DriveInputs, Model, ModelError, Simulator};
 
@@ -352,6 +352,24 @@ fn integrator_settings_of_a_urdf_model_are_validated() {
     let toml = edit(REFERENCE_TOML, "h_min = 2e-6", "h_min = 1e-2");
     let e = rejected(reference(&toml));
     assert!(matches!(&e, ModelError::InvalidParameter { field, .. } if field == "integrator.h_min"), "{e:?}");
+}
+
+/// A URDF joint's entry gives the viscous part of its friction by the same
+/// key as a Denavit–Hartenberg row (`friction = { …, viscous = b }`), read as
+/// written and range checked under the joint's number.
+#[test]
+fn viscous_friction_of_a_urdf_joint() {
+    let friction = FRICTION.replace("v_s = 0.0 }", "v_s = 0.0, viscous = 40.0 }");
+    let m = reference(&with_entry("j3", &format!("{FLEXIBLE}\n{friction}\n{J3_SLIDER}"))).unwrap();
+    assert_eq!(m.joints[2].friction.unwrap().coefficients.viscous, 40.0);
+    assert_eq!(m.parameter(Parameter::Viscous, 2), Some(40.0));
+    assert_eq!(m.joints[0].friction.unwrap().coefficients.viscous, 0.0, "absent is 0");
+    let friction = FRICTION.replace("v_s = 0.0 }", "v_s = 0.0, viscous = -40.0 }");
+    let e = rejected(reference(&with_entry("j3", &format!("{FLEXIBLE}\n{friction}\n{J3_SLIDER}"))));
+    assert!(
+        matches!(&e, ModelError::InvalidParameter { field, value, .. } if field == "joint[3].friction.viscous" && *value == -40.0),
+        "{e:?}"
+    );
 }
 
 #[test]

@@ -283,6 +283,27 @@ fn the_description_lists_value_references_in_order_with_unique_names() {
     assert!(names.contains(&"k[3]") && !names.contains(&"k[2]"));
     assert!(names.contains(&"slider_a[3]") && !names.contains(&"slider_a[1]"));
     assert!(names.contains(&"d_A[1]") && names.contains(&"m[4]"));
+    assert!(names.contains(&"b_v[1]") && names.contains(&"b_v[3]") && !names.contains(&"b_v[2]"));
+}
+
+/// The viscous friction coefficient `b_v[i]` of each joint with friction: a
+/// tunable parameter in the joint's damping unit, its range [0, 1e9], its
+/// start value the model file's, placed after `v_s[i]`.
+#[test]
+fn the_viscous_friction_parameter_is_declared_per_joint_with_friction() {
+    use super::description::{Causality, Type, Variability};
+    use crate::model::Parameter;
+    let mut model = Model::reference_rrpr();
+    model.set_parameter(Parameter::Viscous, 2, 35.0).unwrap();
+    let vars = variables(&model);
+    let position = |name: &str| vars.iter().position(|v| v.name == name).unwrap();
+    for (name, unit, start) in [("b_v[1]", "N.m.s/rad", 0.0), ("b_v[3]", "N.s/m", 35.0)] {
+        let v = &vars[position(name)];
+        assert_eq!((v.causality, v.variability), (Causality::Parameter, Variability::Tunable), "{name}");
+        assert_eq!(v.ty, Type::Real { unit: Some(unit), min: Some(0.0), max: Some(1e9), start: Some(start) }, "{name}");
+        assert!(v.description.contains("mu(v) L sgn(v) + b_v v"), "{name}: {}", v.description);
+    }
+    assert_eq!(position("b_v[1]"), position("v_s[3]") + 1);
 }
 
 #[test]
@@ -857,13 +878,14 @@ mod motor {
     }
 
     // The reference arm (no motor) lists no motor variable, and its list is
-    // the one it had before motor drives (124 variables, at 9a851d5^): the
+    // the one it had before motor drives (124 variables, at 9a851d5^) with
+    // the viscous friction coefficients b_v[1], b_v[3] added since (126): the
     // motor arm's list without its motor variables, name for name, with the
     // same causality, variability and type.
     #[test]
     fn the_reference_model_description_has_no_motor_variables_and_is_unchanged() {
         let reference = variables(&Model::reference_rrpr());
-        assert_eq!(reference.len(), 124);
+        assert_eq!(reference.len(), 124 + 2);
         let motor_names: Vec<&str> =
             reference.iter().map(|v| v.name.as_str()).filter(|n| is_motor_variable(n)).collect();
         assert!(motor_names.is_empty(), "{motor_names:?}");

@@ -3,6 +3,14 @@
 //! (3.11), (3.13)–(3.15), the friction of each phase with its margin to the
 //! next phase change (3.16)–(3.18), and the derivatives the Newton iteration
 //! needs, next to the laws they differentiate.
+//!
+//! Beyond the study, a joint may add a viscous part b·q̇ while it moves
+//! (lubricated bearings and slideways: friction that grows with speed,
+//! independent of the normal load). The kinetic friction of a moving joint
+//! is then F^f = μ(q̇)·L·sgn q̇ + b·q̇, (3.12) or (3.13)–(3.14) plus b·q̇;
+//! at rest the viscous part is zero, so the static limit (3.16)–(3.18) is
+//! the study's. With b = 0 every function here returns the study's value bit
+//! for bit.
 
 use crate::math::Vec3;
 use crate::model::{ContactGeometry, FrictionCoefficients, JointFriction};
@@ -17,6 +25,18 @@ impl FrictionCoefficients {
             self.mu_kinetic + (self.mu_static - self.mu_kinetic) * (-v.abs() / self.stribeck_velocity).exp()
         } else {
             self.mu_kinetic
+        }
+    }
+
+    /// The dry part `coulomb` of a moving joint's friction plus its viscous
+    /// part b·`v`; `coulomb` itself, bit for bit (the sign of a zero
+    /// included), when b = 0.
+    #[inline(always)]
+    pub fn with_viscous(&self, coulomb: f64, v: f64) -> f64 {
+        if self.viscous == 0.0 {
+            coulomb
+        } else {
+            coulomb + self.viscous * v
         }
     }
 
@@ -55,6 +75,7 @@ pub struct PhaseFriction {
 /// F^f = F^d − F*, where F* (3.17) is the axial reaction with the joint
 /// held; the margin is the static reserve F̄^f − |F^d − F*|, with
 /// F̄^f = μ_s·`lever_load` (3.12) or (3.14) with the static coefficient.
+/// A viscous part b·q̇ is zero at rest and does not enter.
 #[inline(always)]
 pub fn stuck_friction(
     coefficients: Option<FrictionCoefficients>,
@@ -68,24 +89,27 @@ pub fn stuck_friction(
 }
 
 /// A joint slipping in direction `direction` (±1): kinetic friction
-/// μ(q̇)·L·d opposes it, (3.12), (3.14). The margin is d·q̇ for a joint that
-/// static friction can hold (it may stick where its velocity reaches zero),
-/// +∞ for one that cannot.
+/// μ(q̇)·L·d opposes it, (3.12), (3.14), plus the viscous part b·q̇. The
+/// margin is d·q̇ for a joint that static friction can hold (it may stick
+/// where its velocity reaches zero), +∞ for one that cannot.
 #[inline(always)]
 pub fn slip_friction(friction: Option<&JointFriction>, lever_load: f64, qd: f64, direction: i8) -> PhaseFriction {
     let d = direction as f64;
-    let force = friction.map_or(0.0, |f| f.coefficients.kinetic(qd)) * lever_load * d;
+    // (3.12), (3.14): μ(q̇)·L·d.
+    let coulomb = friction.map_or(0.0, |f| f.coefficients.kinetic(qd)) * lever_load * d;
+    let force = friction.map_or(coulomb, |f| f.coefficients.with_viscous(coulomb, qd));
     let margin = if holds_statically(friction) { d * qd } else { f64::INFINITY };
     PhaseFriction { force, margin }
 }
 
-/// Friction a rigid drive overcomes while its joint moves: μ(q̇)·L·sgn q̇.
+/// Friction a rigid drive overcomes while its joint moves:
+/// μ(q̇)·L·sgn q̇ + b·q̇.
 #[inline(always)]
 pub fn prescribed_friction(coefficients: Option<FrictionCoefficients>, lever_load: f64, qd: f64) -> f64 {
-    coefficients.map_or(0.0, |c| c.kinetic(qd) * lever_load * sign(qd))
+    coefficients.map_or(0.0, |c| c.with_viscous(c.kinetic(qd) * lever_load * sign(qd), qd))
 }
 
-/// ∂F^f/∂q̇ of [`slip_friction`] at a fixed lever load: d·L·μ'(q̇). In a
+/// ∂F^f/∂q̇ of [`slip_friction`] at a fixed lever load: d·L·μ'(q̇) + b. In a
 /// Newmark sub-step q̇ moves by γh per unit of q̈.
 #[inline(always)]
 pub fn slip_friction_velocity_slope(
@@ -94,13 +118,16 @@ pub fn slip_friction_velocity_slope(
     qd: f64,
     direction: i8,
 ) -> f64 {
-    direction as f64 * lever_load * coefficients.kinetic_slope(qd)
+    let dry = direction as f64 * lever_load * coefficients.kinetic_slope(qd);
+    // ∂(b·q̇)/∂q̇ = b: the viscous part at unit velocity.
+    coefficients.with_viscous(dry, 1.0)
 }
 
 /// Derivative of the kinetic friction μ(q̇)·L·d of a slipping joint
 /// (`direction` d) through its lever load L (friction per unit coefficient,
 /// here `lever_load` under the joint force `f` and moment `n`) along the
-/// change (`df`, `dn`) of that reaction, at fixed q̇. A one-sided difference of
+/// change (`df`, `dn`) of that reaction, at fixed q̇ (the viscous part b·q̇
+/// does not depend on the load). A one-sided difference of
 /// [`contact_load`] with a step of 1e-7 of the reaction's size: the loads are
 /// sums of absolute values and norms, one-sided at their kinks.
 #[inline(always)]

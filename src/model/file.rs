@@ -113,6 +113,9 @@ struct FrictionFile {
     mu_s: f64,
     #[serde(default)]
     v_s: f64,
+    /// b of the viscous part b·q̇, N·s/m or N·m·s/rad.
+    #[serde(default)]
+    viscous: f64,
 }
 
 #[derive(Deserialize)]
@@ -419,8 +422,10 @@ fn geometry_from_file(bearings: Option<&BearingsFile>, slider: Option<&SliderFil
 fn friction_from_file(f: Option<&FrictionFile>, geometry: Option<ContactGeometry>) -> Option<JointFriction> {
     let geometry = geometry?;
     let coefficients = match f {
-        Some(f) => FrictionCoefficients { mu_kinetic: f.mu_k, mu_static: f.mu_s, stribeck_velocity: f.v_s },
-        None => FrictionCoefficients { mu_kinetic: 0.0, mu_static: 0.0, stribeck_velocity: 0.0 },
+        Some(f) => {
+            FrictionCoefficients { mu_kinetic: f.mu_k, mu_static: f.mu_s, stribeck_velocity: f.v_s, viscous: f.viscous }
+        }
+        None => FrictionCoefficients { mu_kinetic: 0.0, mu_static: 0.0, stribeck_velocity: 0.0, viscous: 0.0 },
     };
     Some(JointFriction { coefficients, geometry })
 }

@@ -178,6 +178,10 @@ pub struct FrictionCoefficients {
     /// Stribeck velocity v_s ≥ 0, m/s or rad/s; 0 means a constant kinetic
     /// coefficient μ_k.
     pub stribeck_velocity: f64,
+    /// Viscous coefficient b ≥ 0, N·s/m or N·m·s/rad: a moving joint feels
+    /// b·q̇ on top of its dry friction μ(q̇)·L·sgn q̇, independent of the
+    /// normal load; 0 (the default) is the study's dry friction alone.
+    pub viscous: f64,
 }
 
 /// Where the normal loads of a joint come from (study sections 3.1, 3.2).

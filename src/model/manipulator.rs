@@ -201,6 +201,7 @@ fn validate_joint(number: usize, joint: &Joint) -> Result<(), ModelError> {
     check_value(&f("friction.mu_k"), c.mu_kinetic, Range::FRICTION_COEFFICIENT)?;
     check_value(&f("friction.mu_s"), c.mu_static, Range::FRICTION_COEFFICIENT)?;
     check_value(&f("friction.v_s"), c.stribeck_velocity, Range::STRIBECK_VELOCITY)?;
+    check_value(&f("friction.viscous"), c.viscous, Range::JOINT_VISCOUS)?;
     if c.mu_static < c.mu_kinetic {
         return Err(invalid(
             f("friction.mu_s"),

@@ -20,6 +20,8 @@ pub enum Parameter {
     MuStatic,
     /// Stribeck velocity v_s.
     StribeckVelocity,
+    /// Viscous friction coefficient b of the joint.
+    Viscous,
     /// Slider length a (prismatic joints).
     SliderA,
     /// Slider cross-section b (prismatic joints).
@@ -50,13 +52,14 @@ pub enum Parameter {
 
 impl Parameter {
     /// Every parameter, in a fixed order.
-    pub const ALL: [Parameter; 19] = [
+    pub const ALL: [Parameter; 20] = [
         Parameter::Stiffness,
         Parameter::Damping,
         Parameter::Clearance,
         Parameter::MuKinetic,
         Parameter::MuStatic,
         Parameter::StribeckVelocity,
+        Parameter::Viscous,
         Parameter::SliderA,
         Parameter::SliderB,
         Parameter::SliderC,
@@ -81,6 +84,7 @@ impl Parameter {
             Parameter::MuKinetic => "mu_k",
             Parameter::MuStatic => "mu_s",
             Parameter::StribeckVelocity => "v_s",
+            Parameter::Viscous => "b_v",
             Parameter::SliderA => "slider_a",
             Parameter::SliderB => "slider_b",
             Parameter::SliderC => "slider_c",
@@ -107,6 +111,7 @@ impl Parameter {
             Parameter::Clearance => Range::CLEARANCE,
             Parameter::MuKinetic | Parameter::MuStatic => Range::FRICTION_COEFFICIENT,
             Parameter::StribeckVelocity => Range::STRIBECK_VELOCITY,
+            Parameter::Viscous => Range::JOINT_VISCOUS,
             Parameter::SliderA => Range::SLIDER_LENGTH,
             Parameter::SliderB
             | Parameter::SliderC
@@ -239,6 +244,7 @@ fn slot<'a>(j: &'a mut Joint, link: &'a mut Link, p: Parameter) -> Option<&'a mu
         (Parameter::MuKinetic, _) => Some(&mut c.mu_kinetic),
         (Parameter::MuStatic, _) => Some(&mut c.mu_static),
         (Parameter::StribeckVelocity, _) => Some(&mut c.stribeck_velocity),
+        (Parameter::Viscous, _) => Some(&mut c.viscous),
         (Parameter::SliderA, ContactGeometry::Slider { a, .. }) => Some(a),
         (Parameter::SliderB, ContactGeometry::Slider { b, .. }) => Some(b),
         (Parameter::SliderC, ContactGeometry::Slider { c, .. }) => Some(c),

@@ -50,7 +50,12 @@ impl Model {
                     Drive::Rigid
                 },
                 friction: flexible.then_some(JointFriction {
-                    coefficients: FrictionCoefficients { mu_kinetic: 0.1, mu_static: 0.12, stribeck_velocity: 0.0 },
+                    coefficients: FrictionCoefficients {
+                        mu_kinetic: 0.1,
+                        mu_static: 0.12,
+                        stribeck_velocity: 0.0,
+                        viscous: 0.0,
+                    },
                     geometry,
                 }),
             });

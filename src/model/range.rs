@@ -88,6 +88,9 @@ impl Range {
     pub const FRICTION_COEFFICIENT: Range = Range::closed(0.0, 2.0);
     /// Stribeck velocity v_s, m/s or rad/s (0: constant μ_k).
     pub const STRIBECK_VELOCITY: Range = Range::closed(0.0, 1e3);
+    /// Viscous friction coefficient b of a joint, N·s/m or N·m·s/rad: the
+    /// ceiling of the drive damping h, which has the same unit.
+    pub const JOINT_VISCOUS: Range = Range::closed(0.0, 1e9);
     /// Slider length a, m.
     pub const SLIDER_LENGTH: Range = Range::positive(100.0);
     /// Slider cross-section b, c; bearing diameters and distances, m.

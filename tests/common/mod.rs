@@ -104,7 +104,12 @@ pub fn random_dh_chain(n: usize, seed: u64) -> (Vec<DhJoint>, Vec<Link>) {
             },
             drive,
             friction: Some(JointFriction {
-                coefficients: FrictionCoefficients { mu_kinetic: mu, mu_static: mu * 1.2, stribeck_velocity: 0.0 },
+                coefficients: FrictionCoefficients {
+                    mu_kinetic: mu,
+                    mu_static: mu * 1.2,
+                    stribeck_velocity: 0.0,
+                    viscous: 0.0,
+                },
                 geometry,
             }),
         });

@@ -167,7 +167,7 @@ pub const OUTPUTS: &[OutputKind] = &[
         Arity::PerJoint,
         OutputUnit::Force,
         |m, j, _| {
-            format!("Friction force F^f of {}, signed so that F_drive - F_friction is the generalized force (3.10); while stuck, the friction that holds the joint", joint_label(m, j))
+            format!("Friction force F^f of {}, signed so that F_drive - F_friction is the generalized force (3.10): while moving mu(v) L sgn(v) + b_v v; while stuck, the friction that holds the joint", joint_label(m, j))
         },
         |s, j, _| s.friction_force[j],
     ),
@@ -260,7 +260,7 @@ pub const OUTPUTS: &[OutputKind] = &[
         "Q_friction",
         Arity::Single,
         OutputUnit::Fixed("J"),
-        |_, _, _| "Heat produced by joint friction since initialization".into(),
+        |_, _, _| "Heat produced by joint friction (dry and viscous) since initialization".into(),
         |s, _, _| s.energy.friction_heat,
     ),
     output(

@@ -363,6 +363,11 @@ fn parameter_meaning(model: &Model, p: Parameter, j: usize) -> (Option<&'static 
         Parameter::StribeckVelocity => {
             (Some(u.rate), "Stribeck velocity v_s of mu(v) = mu_k + (mu_s - mu_k) exp(-|v|/v_s); 0: constant mu_k")
         }
+        Parameter::Viscous => (
+            Some(u.damping),
+            "Viscous friction coefficient b_v: a moving joint's friction is mu(v) L sgn(v) + b_v v, the viscous part \
+             independent of the normal load (0: dry friction only, the study's law)",
+        ),
         Parameter::SliderA => (Some("m"), "Slider length a along the axis (3.11)"),
         Parameter::SliderB => (Some("m"), "Slider cross-section b along x of the joint frame (3.11)"),
         Parameter::SliderC => (Some("m"), "Slider cross-section c along y of the joint frame (3.11)"),
