@@ -9,13 +9,26 @@
 //! force M(q)·q̈ + bias(q, q̇) including gravity, N·m or N), `f[i,k]` and
 //! `n[i,k]` (force and moment that link i−1 exerts on link i at the joint's
 //! origin, resolved in link i's frame as the model source describes it: the
-//! URDF child link frame), `x_E[k]` (end point in the base frame) and
-//! `M[i,j]` (the joint-space mass matrix), all at full precision.
+//! URDF child link frame), `x_E[k]` (end point in the base frame),
+//! `M[i,j]` (the joint-space mass matrix), and for each joint i with friction
+//! the loads its friction law reads: `load[i]` (the lever load L, N or N·m:
+//! the dry friction is μ·L, bearing radii included, (3.11)–(3.15)) and
+//! `axial[i]` (F* of (3.17), N or N·m, the reaction along the joint axis,
+//! which equals `tau[i]`), all at full precision.
+//!
+//! `load` and `axial` come from the engine's own functions
+//! (`forces::friction::friction_loads` on the joint reactions of
+//! `algorithms::rnea`), as the stepper computes them at every iterate: with
+//! the measured q, q̇, q̈ they are the engine's for that state, whether the
+//! joint slips or sticks. The friction of a slipping joint is then
+//! μ(q̇)·L·sgn q̇ + b·q̇ and its drive force F^d = τ + F^f (3.9), (3.10); a
+//! stuck one can be held while |F^d − F*| ≤ μ_s·L (3.16).
 
 use std::io::Write;
 use stick_slip_manipulator::algorithms::crba::crba;
 use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
-use stick_slip_manipulator::algorithms::rnea::rnea;
+use stick_slip_manipulator::algorithms::rnea::{joint_reactions, rnea};
+use stick_slip_manipulator::forces::friction::friction_loads;
 use stick_slip_manipulator::{Data, Model};
 
 fn main() {
@@ -71,6 +84,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     for i in 1..=n {
         names.extend((1..=n).map(|j| format!("M[{i},{j}]")));
     }
+    let with_friction: Vec<usize> = (0..n).filter(|&i| model.joints[i].friction.is_some()).collect();
+    names.extend(with_friction.iter().map(|i| format!("load[{}]", i + 1)));
+    names.extend(with_friction.iter().map(|i| format!("axial[{}]", i + 1)));
     // Quoted (RFC 4180): the names hold commas.
     writeln!(w, "{}", names.iter().map(|s| format!("\"{s}\"")).collect::<Vec<_>>().join(","))?;
     for (row, line) in lines.enumerate() {
@@ -87,6 +103,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         let (q, qd, qdd) = (&v[..n], &v[n..2 * n], &v[2 * n..]);
         forward_kinematics(&model, &mut data, q);
         rnea(&model, &mut data, q, qd, qdd);
+        joint_reactions(&model, &mut data);
         crba(&model, &mut data);
         let mut out: Vec<f64> = data.tau.clone();
         for (i, joint) in model.joints.iter().enumerate() {
@@ -95,6 +112,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
         out.extend(end_point(&model, &data).iter());
         out.extend(data.mass_matrix.transpose().iter());
+        let loads: Vec<_> = with_friction
+            .iter()
+            .map(|&i| {
+                let joint = &model.joints[i];
+                friction_loads(joint.friction.as_ref(), &data.reaction_force[i], &data.reaction_moment[i], data.tau[i])
+            })
+            .collect();
+        out.extend(loads.iter().map(|l| l.lever_load));
+        out.extend(loads.iter().map(|l| l.axial));
         writeln!(w, "{}", out.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(","))?;
     }
     Ok(())

@@ -163,6 +163,41 @@ fn sign(x: f64) -> f64 {
     }
 }
 
+/// What the friction law of a joint reads from the joint's reaction: its
+/// contact loads and the axial reaction F*. The stepper takes them from
+/// here, and so does `inverse_dynamics` for measured states.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrictionLoads {
+    /// Total normal load, N: [`ContactLoad::normal`]; 0 without friction.
+    pub normal: f64,
+    /// Lever load L, N or N·m: the dry friction is μ·L
+    /// ([`ContactLoad::lever_load`]); 0 without friction.
+    pub lever_load: f64,
+    /// F* of (3.17), N or N·m: the reaction's component along the joint axis,
+    /// f'_z of a slider, n_z of a pin. It is the generalized force τ the
+    /// joint transmits (the inverse dynamics resolves the reaction in the
+    /// joint frame, z along the axis), and a stuck joint's friction is
+    /// F^d − F* (3.16).
+    pub axial: f64,
+}
+
+/// [`FrictionLoads`] of a joint with `friction` under the joint force `f`
+/// and moment `n` (reaction reference point, joint frame: z along the axis)
+/// whose generalized force is `tau`, all from one inverse-dynamics pass at
+/// the joint's q, q̇, q̈.
+#[inline(always)]
+pub fn friction_loads(friction: Option<&JointFriction>, f: &Vec3, n: &Vec3, tau: f64) -> FrictionLoads {
+    let (normal, lever_load) = match friction {
+        Some(friction) => {
+            let load = contact_load(&friction.geometry, f, n);
+            (load.normal, load.lever_load)
+        }
+        None => (0.0, 0.0),
+    };
+    // (3.17): F* = f'_z or n_z, which the inverse dynamics gives as τ.
+    FrictionLoads { normal, lever_load, axial: tau }
+}
+
 /// Contact loads of a joint computed from its reaction.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactLoad {

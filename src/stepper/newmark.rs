@@ -17,7 +17,7 @@ use crate::data::Data;
 use crate::error::{NonConvergence, StepError};
 use crate::forces::drive::{acceleration_stiffness, clearance_margin, drive_force_over_substep};
 use crate::forces::friction::{
-    contact_load, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
+    friction_loads, prescribed_friction, slip_friction, slip_friction_load_derivative, slip_friction_velocity_slope,
     stuck_friction,
 };
 use crate::forces::rotor::{rotor_acceleration_inertia, rotor_torques};
@@ -599,14 +599,9 @@ impl NewmarkSolver {
         let mut k = 0;
         for (i, joint) in model.joints.iter().enumerate().take(n) {
             let tau = tau[i];
-            let (normal, lever) = match joint.friction {
-                Some(f) => {
-                    let load = contact_load(&f.geometry, &reaction_force[i], &reaction_moment[i]);
-                    (load.normal, load.lever_load)
-                }
-                None => (0.0, 0.0),
-            };
-            normal_load[i] = normal;
+            let loads = friction_loads(joint.friction.as_ref(), &reaction_force[i], &reaction_moment[i], tau);
+            let lever = loads.lever_load;
+            normal_load[i] = loads.normal;
             lever_load[i] = lever;
             let coefficients = joint.friction.map(|f| f.coefficients);
             match joint.drive {
@@ -643,8 +638,8 @@ impl NewmarkSolver {
                         if clearance > 0.0 { clearance_margin(clearance, q_star[i] - q[i]) } else { f64::INFINITY };
                     match phase[i] {
                         Phase::Stuck => {
-                            // (3.17): F* = τ is the axial reaction with the joint held.
-                            let held = stuck_friction(coefficients, lever, fd, tau);
+                            // (3.16): F* of (3.17) with the joint held.
+                            let held = stuck_friction(coefficients, lever, fd, loads.axial);
                             friction_force[i] = held.force;
                             margin[i] = held.margin;
                         }
