@@ -22,9 +22,11 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 
-use stick_slip_manipulator::model::{IntegratorSettings, REFERENCE_RRPR_TOML};
+use stick_slip_manipulator::algorithms::kinematics::forward_kinematics;
+use stick_slip_manipulator::algorithms::rnea::rnea;
+use stick_slip_manipulator::model::{IntegratorSettings, Parameter, REFERENCE_RRPR_TOML};
 use stick_slip_manipulator::motion::reference_inputs;
-use stick_slip_manipulator::{DriveInputs, Model, Phase, Simulator, State};
+use stick_slip_manipulator::{Data, DriveInputs, Model, Phase, Simulator, State};
 
 /// The reference model file with viscous friction on joints 1 and 3.
 fn model_text() -> String {
@@ -56,15 +58,27 @@ fn simulated_states(model: &Model) -> Vec<State> {
     states
 }
 
-/// A fresh directory for this test's files.
+/// A fresh directory for one run's files (the tests run in parallel).
 fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("inverse_dynamics_friction_{}", std::process::id()));
+    static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("inverse_dynamics_friction_{}_{k}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
 
 /// Runs `inverse_dynamics` on the states; its output, column by name.
 fn inverse_dynamics(model_text: &str, states: &[State], n: usize) -> HashMap<String, Vec<f64>> {
+    inverse_dynamics_with(model_text, states, n, &[]).expect("inverse_dynamics failed")
+}
+
+/// The same with extra arguments (`--set ...`); Err(stderr) where it exits non-zero.
+fn inverse_dynamics_with(
+    model_text: &str,
+    states: &[State],
+    n: usize,
+    extra: &[&str],
+) -> Result<HashMap<String, Vec<f64>>, String> {
     let dir = scratch();
     let (model, input, output) = (dir.join("model.toml"), dir.join("states.csv"), dir.join("out.csv"));
     std::fs::write(&model, model_text).unwrap();
@@ -76,12 +90,16 @@ fn inverse_dynamics(model_text: &str, states: &[State], n: usize) -> HashMap<Str
         lines.push(csv.join(","));
     }
     std::fs::write(&input, lines.join("\n") + "\n").unwrap();
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_inverse_dynamics"))
+    let done = std::process::Command::new(env!("CARGO_BIN_EXE_inverse_dynamics"))
         .args(["--model", model.to_str().unwrap(), "--states", input.to_str().unwrap()])
         .args(["--out", output.to_str().unwrap()])
-        .status()
+        .args(extra)
+        .output()
         .unwrap();
-    assert!(status.success(), "inverse_dynamics failed: {status}");
+    if !done.status.success() {
+        std::fs::remove_dir_all(&dir).unwrap();
+        return Err(String::from_utf8_lossy(&done.stderr).into_owned());
+    }
     let text = std::fs::read_to_string(&output).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     let mut rows = text.lines();
@@ -96,7 +114,37 @@ fn inverse_dynamics(model_text: &str, states: &[State], n: usize) -> HashMap<Str
             columns.get_mut(name).unwrap().push(x);
         }
     }
-    columns
+    Ok(columns)
+}
+
+/// `--set NAME[i]=VALUE` (the fit's equation-error stage passes an experiment's known
+/// masses and contact geometry so): the same columns as a model file with that value,
+/// bit for bit; a name the model does not have, a value out of range or a relation the
+/// model refuses (μ_s < μ_k) is one line on stderr and a non-zero exit.
+#[test]
+fn set_changes_a_parameter_as_the_model_file_would() {
+    let text = model_text();
+    let model = Model::from_toml_str(&text).unwrap();
+    let states = simulated_states(&model);
+    let n = model.nq();
+    let mut heavier = model.clone();
+    heavier.set_parameter(Parameter::Mass, 2, 12.0).unwrap();
+    let set = inverse_dynamics_with(&text, &states, n, &["--set", "m[3]=12"]).unwrap();
+    let plain = inverse_dynamics(&text, &states, n);
+    assert_ne!(set["tau[1]"], plain["tau[1]"], "m[3] changes the column's load");
+    // The same numbers as the engine's RNEA with the heavier link.
+    let mut data = Data::new(&heavier);
+    for (k, s) in states.iter().enumerate() {
+        forward_kinematics(&heavier, &mut data, &s.q);
+        rnea(&heavier, &mut data, &s.q, &s.qd, &s.qdd);
+        for i in 0..n {
+            assert_eq!(set[&format!("tau[{}]", i + 1)][k], data.tau[i], "tau[{}] at state {k}", i + 1);
+        }
+    }
+    for bad in ["m[9]=1", "m[3]=-1", "nonsense=1", "mu_k[1]=0.9", "m[0]=1", "m[3]"] {
+        let err = inverse_dynamics_with(&text, &states, n, &["--set", bad]).unwrap_err();
+        assert_eq!(err.trim().lines().count(), 1, "{bad}: {err}");
+    }
 }
 
 #[test]

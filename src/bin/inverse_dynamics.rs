@@ -2,7 +2,12 @@
 //! against another rigid-body library (the URDF tests compare it with
 //! Pinocchio) and for users who want the joint loads of a motion.
 //!
-//! Usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv
+//! Usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv [--set NAME[i]=VALUE ...]
+//!
+//! `--set` changes a tunable parameter of the model file by its FMU name
+//! (`m[3]`, `d_A[1]`, `mu_k[1]`, ...), checked as the FMU checks it; the fit's
+//! equation-error stage (python/stickslip/fit/idim.py) passes an experiment's
+//! known values so.
 //!
 //! IN.csv has a header and the columns q[1..n], qd[1..n], qdd[1..n] (any
 //! order, named so). For each row OUT.csv has: `tau[i]` (the generalized
@@ -29,7 +34,25 @@ use stick_slip_manipulator::algorithms::crba::crba;
 use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
 use stick_slip_manipulator::algorithms::rnea::{joint_reactions, rnea};
 use stick_slip_manipulator::forces::friction::friction_loads;
+use stick_slip_manipulator::model::Parameter;
 use stick_slip_manipulator::{Data, Model};
+
+const USAGE: &str = "usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv [--set NAME[i]=VALUE ...]";
+
+/// `--set NAME[i]=VALUE`: a tunable parameter by its FMU name (`mu_k[1]`, `m[3]`,
+/// `d_A[1]`, ...), checked against its range as the FMU checks it.
+fn set_parameter(model: &mut Model, set: &str) -> Result<(), String> {
+    let bad = || format!("--set {set:?}: expected NAME[i]=VALUE with a tunable parameter's FMU name");
+    let (name, value) = set.split_once('=').ok_or_else(bad)?;
+    let (stem, index) = name.trim().strip_suffix(']').and_then(|n| n.split_once('[')).ok_or_else(bad)?;
+    let parameter = Parameter::ALL.iter().copied().find(|p| p.name() == stem).ok_or_else(bad)?;
+    let joint: usize = index.parse().map_err(|_| bad())?;
+    let value: f64 = value.trim().parse().map_err(|_| bad())?;
+    if joint == 0 {
+        return Err(bad());
+    }
+    model.set_parameter(parameter, joint - 1, value).map_err(|e| format!("--set {set:?}: {e}"))
+}
 
 fn main() {
     if let Err(e) = run() {
@@ -40,6 +63,7 @@ fn main() {
 
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let (mut model_path, mut states, mut out) = (None, None, None);
+    let mut sets = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or_else(|| format!("{a} needs a value"));
@@ -47,20 +71,19 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--model" => model_path = Some(value()?),
             "--states" => states = Some(value()?),
             "--out" => out = Some(value()?),
-            _ => {
-                return Err(format!(
-                    "unknown argument {a} (usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv)"
-                )
-                .into())
-            }
+            "--set" => sets.push(value()?),
+            _ => return Err(format!("unknown argument {a} ({USAGE})").into()),
         }
     }
-    let usage = "usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv";
-    let model = Model::from_file(model_path.ok_or(usage)?)?;
+    let mut model = Model::from_file(model_path.ok_or(USAGE)?)?;
+    for set in &sets {
+        set_parameter(&mut model, set)?;
+    }
+    model.validate()?;
     for warning in &model.warnings {
         eprintln!("inverse_dynamics: warning: {warning}");
     }
-    let states = states.ok_or(usage)?;
+    let states = states.ok_or(USAGE)?;
     let text = std::fs::read_to_string(&states).map_err(|e| format!("cannot read {states}: {e}"))?;
     let n = model.nq();
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
@@ -74,7 +97,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let mut data = Data::new(&model);
-    let mut w = std::io::BufWriter::new(std::fs::File::create(out.ok_or(usage)?)?);
+    let mut w = std::io::BufWriter::new(std::fs::File::create(out.ok_or(USAGE)?)?);
     let mut names: Vec<String> = (1..=n).map(|i| format!("tau[{i}]")).collect();
     for i in 1..=n {
         names.extend((1..=3).map(|k| format!("f[{i},{k}]")));

@@ -141,9 +141,6 @@ def test_a_pair_the_data_cannot_separate_is_named(tmp_path):
     assert abs(a["value"] + b["value"] - 0.2) <= 3 * se_sum
 
 
-@pytest.mark.xfail(
-    reason="the equation-error stage always fails: target/release/inverse_dynamics has no --set option", strict=True
-)
 def test_the_equation_error_stage_starts_near_the_truth(tmp_path):
     """Issue 29, item 2: the equation-error stage (IDIM-LS on the measured motion, no
     simulation) gives a start of its own, and from the encoders of 1 s of the reference motion

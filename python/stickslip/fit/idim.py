@@ -38,6 +38,8 @@ from ..fmu import ROOT
 
 INVERSE_DYNAMICS = ROOT / "target" / "release" / "inverse_dynamics"
 LINEAR = ("k", "h", "mu_k", "mu_s", "b_v")  # parameters the slip equation is linear in
+# The parameters inverse dynamics and the lever loads depend on: masses and contact geometry.
+RIGID_BODY = ("m", "slider_a", "slider_b", "slider_c", "d_A", "d_B", "d_C", "l_A", "l_B")
 
 
 def joint_of(name: str):
@@ -159,7 +161,7 @@ def _inverse_dynamics(model: Path, q, qd, qdd, known: dict, name: str) -> dict:
     with tempfile.TemporaryDirectory(prefix="stickslip-idim-") as tmp:
         states, out = Path(tmp) / "states.csv", Path(tmp) / "loads.csv"
         np.savetxt(states, np.hstack([q, qd, qdd]), delimiter=",", header=",".join(header), comments="", fmt="%.17g")
-        sets = [a for k, v in known.items() if joint_of(k) for a in ("--set", f"{k}={v!r}")]
+        sets = [a for k, v in known.items() if (joint_of(k) or ("",))[0] in RIGID_BODY for a in ("--set", f"{k}={v!r}")]
         cmd = [str(INVERSE_DYNAMICS), "--model", str(model), "--states", str(states), "--out", str(out), *sets]
         done = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if done.returncode != 0:
