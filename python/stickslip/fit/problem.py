@@ -3,9 +3,9 @@ sample of every experiment, runs on Dask or in this process.
 
 * :class:`Transform`: each estimated parameter θ_j maps to z_j in [0, 1] over its bounds,
   linearly or (``scale = "log"``) in log θ. Where μ_k[i] and μ_s[i] of one joint are both
-  estimated, μ_s is reached through the excess Δμ = μ_s − μ_k ≥ 0 (z over
-  [max(0, low_s − high_k), high_s − low_k]), so every point the optimizer tries satisfies the
-  FMU's μ_s ≥ μ_k and none is refused for it.
+  estimated, z of μ_s is the fraction of the way from max(μ_k, low_s) to high_s:
+  μ_s = b + z (high_s − b), b = max(μ_k, low_s), so every point the optimizer tries satisfies
+  the FMU's μ_s ≥ μ_k and stays in μ_s's bounds, and none is refused for it.
 * :class:`Evaluator`: runs (:func:`stickslip.fit.runner.run`) on a Dask cluster, the FMU's
   bytes sent to every worker by the sweep's worker plugin, the experiments' data scattered
   once; or in this process (``client=None``).
@@ -36,51 +36,47 @@ class Transform:
         for j, name in enumerate(names):
             if name.startswith("mu_s[") and name.replace("mu_s[", "mu_k[") in names:
                 self.excess[j] = names.index(name.replace("mu_s[", "mu_k["))
-        self.low = np.empty(len(names))
-        self.span = np.empty(len(names))
-        for j, e in enumerate(self.estimates):
-            if j in self.excess:
-                k = self.estimates[self.excess[j]]
-                lo, hi = max(0.0, e.low - k.high), e.high - k.low
-                self.low[j], self.span[j] = lo, hi - lo
-            elif e.scale == "log":
-                self.low[j], self.span[j] = math.log(e.low), math.log(e.high) - math.log(e.low)
-            else:
-                self.low[j], self.span[j] = e.low, e.high - e.low
+        self.log = np.array([e.scale == "log" and j not in self.excess for j, e in enumerate(self.estimates)])
+        self.low = np.array([math.log(e.low) if lg else e.low for e, lg in zip(self.estimates, self.log, strict=True)])
+        high = np.array([math.log(e.high) if lg else e.high for e, lg in zip(self.estimates, self.log, strict=True)])
+        self.span = high - self.low
+
+    def _base(self, theta, j: int) -> tuple:
+        """(b, top) of a μ_s reached from its μ_k: μ_s = b + z (top − b)."""
+        e = self.estimates[j]
+        base = max(theta[self.excess[j]], e.low)
+        return base, max(e.high, base)
 
     def theta(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=np.float64)
         u = self.low + z * self.span
-        theta = np.array(
-            [
-                math.exp(u[j]) if e.scale == "log" and j not in self.excess else u[j]
-                for j, e in enumerate(self.estimates)
-            ]
-        )
-        for j, k in self.excess.items():
-            theta[j] = theta[k] + u[j]
+        theta = np.where(self.log, np.exp(np.where(self.log, u, 0.0)), u)
+        for j in self.excess:
+            base, top = self._base(theta, j)
+            theta[j] = base + z[j] * (top - base)
         return theta
 
     def z(self, theta) -> np.ndarray:
         theta = np.asarray(theta, dtype=np.float64)
-        u = np.array(
-            [
-                math.log(theta[j]) if e.scale == "log" and j not in self.excess else theta[j]
-                for j, e in enumerate(self.estimates)
-            ]
-        )
-        for j, k in self.excess.items():
-            u[j] = theta[j] - theta[k]
-        return np.clip((u - self.low) / self.span, 0.0, 1.0)
+        u = np.where(self.log, np.log(np.where(self.log, theta, 1.0)), theta)
+        z = (u - self.low) / self.span
+        for j in self.excess:
+            base, top = self._base(theta, j)
+            z[j] = (theta[j] - base) / (top - base) if top > base else 0.0
+        return np.clip(z, 0.0, 1.0)
 
     def jacobian(self, z) -> np.ndarray:
         """dθ/dz at z (p × p)."""
+        z = np.asarray(z, dtype=np.float64)
         theta = self.theta(z)
-        d = np.zeros((len(theta), len(theta)))
-        for j, e in enumerate(self.estimates):
-            d[j, j] = self.span[j] * (theta[j] if e.scale == "log" and j not in self.excess else 1.0)
+        d = np.diag(np.where(self.log, theta, 1.0) * self.span)
         for j, k in self.excess.items():
-            d[j, k] = d[k, k]
+            base, top = self._base(theta, j)
+            d[j, j] = top - base
+            if theta[k] > self.estimates[j].low:  # b = μ_k: μ_s moves with μ_k
+                d[j, :] += (1.0 - z[j]) * d[k, :]
+            if top > self.estimates[j].high:  # μ_k above high_s: μ_s = μ_k
+                d[j, :] = d[k, :]
         return d
 
     def named(self, theta) -> dict:
