@@ -5,6 +5,10 @@ Marker ``slow``: long-running tests (e.g. full reference simulations through the
 FMU). They are *deselected* by default, so ``scripts/test.sh`` / CI stays fast.
 Run them with ``pytest --runslow`` or ``RUN_SLOW=1 pytest``; run only them with
 ``pytest -m slow --runslow`` (what ``scripts/main.sh`` does).
+
+Marker ``full``: tests CI runs but the inner loop (``scripts/test.sh --quick``, which
+deselects them with ``-m "not full"``) leaves out: those that need the win64 or darwin64
+binaries or a second master, start Dask clusters, or take more than a few seconds each.
 """
 
 import os
@@ -29,6 +33,10 @@ def pytest_configure(config):
     config.addinivalue_line(
         "markers",
         "slow: long-running test; deselected unless --runslow or RUN_SLOW=1",
+    )
+    config.addinivalue_line(
+        "markers",
+        "full: in CI's full run, not in the inner loop (scripts/test.sh --quick deselects it)",
     )
 
 
