@@ -14,6 +14,8 @@
 #      (scripts/plot_urdf_arm.py); URDF_ARMS="kuka_iiwa" runs one, "" none
 #   6. stickslip study --out results/study   (the source study's five cases, docs/study.md)
 #   7. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 500 samples)
+#   7b. stickslip fit examples/calibration/calibration.toml --out results/calibration
+#       (docs/calibration.md: six parameters of the reference arm from two measured runs)
 #   8. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
@@ -124,6 +126,11 @@ banner "stickslip sweep examples/monte_carlo.toml (first $MC_SAMPLES samples, 10
 rm -rf "$RESULTS_DIR/monte_carlo"
 stickslip sweep examples/monte_carlo.toml --out "$RESULTS_DIR/monte_carlo" --samples "$MC_SAMPLES" \
     --check-convergence --convergence-fraction 0.1
+
+# The calibration example (docs/calibration.md): measured by the FMU at values the SPEC
+# does not know; about 4 minutes on 2 busy cores.
+banner "stickslip fit examples/calibration/calibration.toml -> $RESULTS_DIR/calibration"
+stickslip fit examples/calibration/calibration.toml --out "$RESULTS_DIR/calibration"
 
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python -m slow --runslow"

@@ -31,7 +31,7 @@ from .solve import StartResult, jacobian, latin_hypercube, run_starts, uncertain
 from .spec import FitSpec, FitSpecError, load
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
-SAME_COST = 0.10  # starts within this relative cost of the best are "similar"
+SAME_COST = 0.95  # starts whose cost the data cannot reject at this level are "of similar cost"
 
 
 class FitError(RuntimeError):
@@ -191,11 +191,17 @@ def _summarize(
             f"the standard errors change by {100 * se_change:.0f} % when the Jacobian's step is tripled: the "
             "integration noise is not far below the step; tighten error_tolerance"
         )
+    # Another minimum is "of similar cost" when the data cannot reject it: its cost exceeds
+    # the best by less than half the chi-square quantile of p degrees of freedom, in units of
+    # the noise scale (a likelihood-ratio test at the level SAME_COST).
+    from scipy.stats import chi2
+
+    margin = 0.5 * float(chi2.ppf(SAME_COST, len(names))) * unc.scale
     similar = []
     for s in results:
         if s is best or s.z is None or not math.isfinite(s.cost):
             continue
-        if s.cost <= best.cost * (1.0 + SAME_COST):
+        if s.cost <= best.cost + margin:
             other = transform.theta(s.z)
             apart = [n for j, n in enumerate(names) if abs(other[j] - theta[j]) > 3.0 * max(unc.std_error[j], 1e-300)]
             if apart:
