@@ -30,6 +30,9 @@ import pytest
 
 from helpers import ROOT, require_fmu
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the axis-control example, about 11 s
+pytestmark = pytest.mark.full
+
 try:  # the motor FMU of the FMU tests (built once per process into the scratch directory)
     from motor_fmus import require_motor_fmu
 except ImportError:  # pragma: no cover - when motor_fmus.py is not there: build it here

@@ -35,6 +35,9 @@ from stickslip import convergence
 from stickslip.convergence import check_convergence, selected_runs, spread, spread_name
 from sweep_cluster import STICKSLIP, sweep, write_spec
 
+# CI's full run only (scripts/test.sh --quick leaves it out): Dask clusters
+pytestmark = pytest.mark.full
+
 CLEARANCES = {"Delta[1]": math.pi / 90, "Delta[3]": 0.002}  # the study's clearance case (Fig. 13)
 
 

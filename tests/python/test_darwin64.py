@@ -36,6 +36,9 @@ import pytest
 
 from helpers import fmu_path
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the darwin64 binary (not built by --quick)
+pytestmark = pytest.mark.full
+
 DYLIB = "binaries/darwin64/StickSlipManipulator.dylib"
 INSTALL_NAME = "@rpath/StickSlipManipulator.dylib"
 LIBSYSTEM = "/usr/lib/libSystem.B.dylib"

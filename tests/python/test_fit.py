@@ -50,6 +50,7 @@ def _noise_floor(result: dict) -> float:
 # estimates and their uncertainty
 
 
+@pytest.mark.full
 def test_noiseless_data_give_the_true_parameters_to_1e_4(tmp_path):
     """Noiseless encoders (no noise, no quantization), measured at error_tolerance 1e-8, the
     inputs the four q* columns (rates from the fit's cubic spline): μ_k[1], μ_s[1], k[3] from
@@ -99,6 +100,7 @@ def _check_coverage(names, values, errors, results):
         assert not [w for w in r["warnings"] if "identifiable" in w], r["warnings"]
 
 
+@pytest.mark.full
 def test_standard_errors_hold_up_under_20_noise_seeds(tmp_path):
     """The encoders' noise of the issue (2e-6 rad on q[1], 1e-6 m on q[3]), 20 seeds, 0.5 s,
     μ_k[1] and k[3] fitted from the truth (single shooting: the start is in the basin) at the
@@ -164,6 +166,7 @@ def test_the_equation_error_stage_starts_near_the_truth(tmp_path):
 DISCARDING = {"tolerance": 1e-12, "h_min": 2e-4, "h_max": 2e-4}
 
 
+@pytest.mark.full
 def test_starts_in_a_region_the_fmu_discards_are_reported_and_the_fit_finishes(tmp_path):
     """k[3] on a log scale over [1e5, 1e11] with the settings above: the initial value 3e10
     and the Latin hypercube's top stratum [6e9, 1e11] lie where every run is discarded, its
@@ -241,6 +244,7 @@ def test_a_start_the_fmu_refuses_is_penalized_not_fatal(tmp_path):
 # several starts, several experiments
 
 
+@pytest.mark.full
 def test_multi_start_finds_the_minimum_a_poor_start_misses(tmp_path):
     """Over 0.7 s the cost in μ_k[1] has three minima, each a different stick-slip pattern of
     joints 1 and 3: 0.13 (cost 1e5), 0.17 (the truth, at the noise floor) and 0.21 (7e4),
@@ -292,6 +296,7 @@ def two_experiments(tmp_path_factory):
     return both, out, results
 
 
+@pytest.mark.full
 def test_two_experiments_are_fitted_together(two_experiments):
     """Both experiments enter: each channel of each has its residual_rms (keyed
     experiment:output) at the noise's level, which it could not be if the 12 kg run were
@@ -345,6 +350,7 @@ def _rerun_from_fitted_toml(spec_source, out, experiment_index: int = 0) -> dict
     return rms
 
 
+@pytest.mark.full
 def test_fitted_toml_reproduces_each_of_two_experiments(two_experiments):
     """fitted.toml must let each experiment be rerun as fitted: with its values, each
     experiment's residual rms is fit.json's to 1e-9."""
@@ -443,6 +449,7 @@ def test_fitted_toml_reproduces_the_fitted_run(small_fit):
         assert _rel(rms, reported[key]) < 1e-9, (key, rms, reported[key])
 
 
+@pytest.mark.full
 def test_fitted_toml_reproduces_a_fit_at_a_tighter_error_tolerance(tmp_path):
     """A fit whose runs use [options] error_tolerance = 1e-5: fitted.toml must say so (a
     --set or entry of error_tolerance), so that its values rerun the fitted run: residual
@@ -458,6 +465,7 @@ def test_fitted_toml_reproduces_a_fit_at_a_tighter_error_tolerance(tmp_path):
         assert _rel(rms, reported[key]) < 1e-9, (key, rms, reported[key])
 
 
+@pytest.mark.full
 def test_fit_on_a_dask_scheduler_equals_the_fit_in_one_process(cluster, small_fit, tmp_path):
     """`stickslip fit SPEC --out DIR --scheduler ADDRESS` on a real scheduler with two worker
     processes (tests/python/sweep_cluster.py): the runs are deterministic, so fit.json's

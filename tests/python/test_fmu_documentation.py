@@ -39,6 +39,9 @@ from helpers import ROOT, require_fmu
 from motor_fmus import require_motor_fmu
 from urdf_fmus import IIWA_JOINTS, require_iiwa_fmu
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the motor and iiwa FMUs built
+pytestmark = pytest.mark.full
+
 DOC = "documentation/index.html"
 ICON = "model.png"
 # The drive colours of src/fmi/description/documentation.rs (DRIVE_COLOURS), RGB.

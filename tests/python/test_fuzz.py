@@ -14,6 +14,9 @@ from helpers import require_fmu
 from motor_fmus import require_motor_fmu
 from urdf_fmus import require_iiwa_fmu
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the seeded FMI fuzz
+pytestmark = pytest.mark.full
+
 # fmu: (FMU, batches, calls per batch, least ok steps, least errors, least state
 # mutations and restores, least refused URDF mutations, least calls aimed at motors). The
 # iiwa's 4,000 calls take about 14 s (the reference's about 50 s: its steps are longer), the

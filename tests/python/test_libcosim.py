@@ -26,6 +26,9 @@ from helpers import (
     variables,
 )
 
+# CI's full run only (scripts/test.sh --quick leaves it out): a second master (OSP libcosim)
+pytestmark = pytest.mark.full
+
 STEP_NS = 1_000_000  # 1 ms
 STEPS = 500  # 0.5 s of the reference motion
 

@@ -72,6 +72,9 @@ from motor_fmus import (
 )
 from urdf_fmus import BUILD_SECONDS
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the motor-drive FMU built
+pytestmark = pytest.mark.full
+
 INTERVAL = 1e-3
 G = 9.81
 BALANCE_TOLERANCE = 1e-6  # of max |W_drive| over the run

@@ -20,6 +20,9 @@ import pytest
 from helpers import require_fmu
 from stickslip.progress import Progress
 
+# CI's full run only (scripts/test.sh --quick leaves it out): Dask clusters and a pty
+pytestmark = pytest.mark.full
+
 STICKSLIP = str(Path(sys.executable).with_name("stickslip"))
 LINE = re.compile(r"^reference motion: +(\d+) % \(t = (\d\.\d{3}) s of 0\.2 s, \d+\.\d s wall\)$")
 

@@ -28,6 +28,9 @@ import pytest
 from helpers import require_fmu
 from stickslip import study
 
+# CI's full run only (scripts/test.sh --quick leaves it out): the study's cases
+pytestmark = pytest.mark.full
+
 CI = {"interval": 1e-3}
 FULL = {"interval": 1e-4}
 RESOLUTIONS = [pytest.param(CI, id="ci"), pytest.param(FULL, id="full", marks=pytest.mark.slow)]

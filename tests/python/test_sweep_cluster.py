@@ -28,6 +28,9 @@ import pytest
 from helpers import FLEXIBLE, Slave, input_vector
 from sweep_cluster import loopback_cluster, sweep, sweep_process, write_spec
 
+# CI's full run only (scripts/test.sh --quick leaves it out): Dask clusters
+pytestmark = pytest.mark.full
+
 JOINTS = (1, 2, 3, 4)
 
 

@@ -27,6 +27,9 @@ from fmpy.validation import validate_fmu
 from helpers import LogCapture, scratch_dir
 from urdf_fmus import BUILD_SECONDS, IIWA_JOINTS, IIWA_MODEL, IIWA_URDF, require_iiwa_fmu, rezip
 
+# CI's full run only (scripts/test.sh --quick leaves it out): URDF arms' FMUs built
+pytestmark = pytest.mark.full
+
 N = 7
 # Per-joint families are indexed by joint; x_E by coordinate.
 COMPONENT_FAMILIES = {"x_E"}

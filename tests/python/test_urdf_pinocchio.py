@@ -60,6 +60,9 @@ from urdf_reference import (  # noqa: E402
     rigid_variant,
 )
 
+# CI's full run only (scripts/test.sh --quick leaves it out): URDF arms' FMUs built and compared with Pinocchio
+pytestmark = pytest.mark.full
+
 REL = 1e-9
 SAMPLES = 50
 SEED = 19
