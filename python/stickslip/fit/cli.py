@@ -8,22 +8,15 @@ that cannot be used (one line naming the field; nothing written), 1 a fit that c
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("spec", help="the fit SPEC (TOML): fmu, [[experiment]], [estimate], [options] (docs/calibration.md)")
     p.add_argument("--out", required=True, help="result directory: fit.json, report.md, fitted.toml, plots")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
-    where.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help=f"worker processes of the local cluster (default: the number of cores, {os.cpu_count()}; "
-        "0: every run in this process)",
-    )
+    from ..cli import cluster_arguments
+
+    cluster_arguments(p, in_process=True)
 
 
 def main(a: argparse.Namespace) -> int:
