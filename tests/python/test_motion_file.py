@@ -673,6 +673,7 @@ def test_sweep_spec_takes_a_motion_file_identified_with_its_csv(fmu, tmp_path):
         _motion(seven, read_model_description(str(fmu)))
 
 
+@pytest.mark.full  # a Dask cluster
 def test_sweep_with_the_reference_motion_file_gives_the_reference_rows(fmu, tmp_path):
     import pandas as pd
 

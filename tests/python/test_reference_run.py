@@ -66,6 +66,7 @@ def _as_dict(res, names):
     return {n: np.asarray(res[n], dtype=np.float64) for n in names}
 
 
+@pytest.mark.full  # about 40 s
 def test_simulate_fmu_applies_inputs_at_communication_points():
     """simulate_fmu of the reference motion at 1e-3 s completes (2001 samples, t = 0..2 s)
     and equals, bit for bit, FMU2Slave driven by hand with the inputs at t_k = k*1e-3 and

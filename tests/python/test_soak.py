@@ -13,8 +13,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import soak
 from helpers import require_fmu
+
+# CI's full run only (scripts/test.sh --quick leaves it out): a soak of about 13 s
+pytestmark = pytest.mark.full
 
 
 def test_resident_memory_stays_flat():
