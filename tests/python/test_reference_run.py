@@ -22,6 +22,7 @@ communication point t_k:
 import time
 
 import numpy as np
+import pytest
 from fmpy import simulate_fmu
 
 from helpers import (
