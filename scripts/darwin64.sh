@@ -96,6 +96,8 @@ _darwin64_env() {
         return 1
     }
     export RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1
+    # The cross builds keep their own cache (the shared target dir), not sccache.
+    unset RUSTC_WRAPPER
     # Both targets build in one cargo run, so one MACOSX_DEPLOYMENT_TARGET:
     # x86_64's 10.13. rustc raises it to its arm64 minimum, 11.0, for
     # aarch64-apple-darwin (max of the variable and the architecture's

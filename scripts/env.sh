@@ -20,7 +20,10 @@
 #   * only with STICKSLIP_DARWIN64=1 (scripts/build_fmu.sh sets it when it
 #     builds darwin64, which it does by default): Debian's llvm-14 and the PyPI
 #     package `ziglang` in a venv of its own (see _stickslip_ensure_darwin64).
-#   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>.
+#   * the host builds compile through sccache (Debian package; RUSTC_WRAPPER,
+#     cache in $STICKSLIP_CACHE_DIR/sccache; see _stickslip_ensure_sccache).
+#   * MPLBACKEND=Agg (headless plotting), STICKSLIP_ROOT=<repo root>,
+#     STICKSLIP_CACHE_DIR (default ~/.cache/stickslip): the caches outside the clone.
 #
 # Safe for `set -euo pipefail` callers, CI=true and no stdin. On failure it
 # prints the reason and returns non-zero (so a `set -e` caller stops).
@@ -92,6 +95,27 @@ _stickslip_ensure_win64_packages() {
     fi
     # shellcheck disable=SC2086
     _stickslip_apt_install $missing || return 1
+}
+
+_stickslip_ensure_sccache() {
+    # The compiler cache of the host builds (Debian's package sccache): every
+    # clone's `cargo` compiles through it (RUSTC_WRAPPER), so a fresh clone
+    # takes its dependencies' compiled crates from $STICKSLIP_CACHE_DIR/sccache
+    # instead of compiling them again. Its key is the content (the compiler's
+    # binary, the arguments, the environment cargo sets, every source file the
+    # crate reads), so it cannot hand out a stale build; crates it cannot cache
+    # (the project's own cdylib, binaries, test harnesses) are simply compiled.
+    # STICKSLIP_SCCACHE=0, or a RUSTC_WRAPPER of your own, leaves it out.
+    [ "${STICKSLIP_SCCACHE:-1}" = 1 ] && [ -z "${RUSTC_WRAPPER:-}" ] || return 0
+    if ! command -v sccache >/dev/null 2>&1; then
+        if [ "${STICKSLIP_SKIP_APT:-0}" = 1 ]; then
+            _stickslip_log "WARNING: sccache missing and STICKSLIP_SKIP_APT=1; compiling without the cache"
+            return 0
+        fi
+        _stickslip_apt_install sccache || return 1
+    fi
+    export RUSTC_WRAPPER=sccache SCCACHE_DIR="${SCCACHE_DIR:-$STICKSLIP_CACHE_DIR/sccache}"
+    export SCCACHE_CACHE_SIZE="${SCCACHE_CACHE_SIZE:-10G}"
 }
 
 _stickslip_ensure_darwin64() {
@@ -220,6 +244,7 @@ _stickslip_env_main() {
     # NB: functions called in a `||` list run with `set -e` disabled, hence the
     # explicit `|| return 1` on every step inside them.
     _stickslip_ensure_libclang || return 1
+    _stickslip_ensure_sccache || return 1
     _stickslip_ensure_win64_packages || return 1
     _stickslip_ensure_venv "$root" "$venv" || return 1
     _stickslip_ensure_darwin64 "$root" || return 1
@@ -239,7 +264,7 @@ else
     _stickslip_env_rc=1
     _stickslip_log "environment setup FAILED"
 fi
-unset -f _stickslip_env_main _stickslip_ensure_darwin64 _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
+unset -f _stickslip_env_main _stickslip_ensure_sccache _stickslip_ensure_darwin64 _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
 # `return` when sourced, `exit` when run as a script.
 if [ "$_stickslip_env_rc" -eq 0 ]; then
     unset _stickslip_env_rc

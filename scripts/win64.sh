@@ -36,6 +36,8 @@ WIN64_SYSTEM_DLLS='(kernel32|ntdll|msvcrt|advapi32|userenv|ws2_32|bcrypt|bcryptp
 _win64_env() {
     local include
     export RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1
+    # The cross builds keep their own cache (the shared target dir), not sccache.
+    unset RUSTC_WRAPPER
     # bindgen (fmi-sys) parses the FMI headers for the mingw target with
     # libclang, which then needs clang's own builtin headers (mm_malloc.h):
     # those of the libclang env.sh found.
