@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..motion import motor_joints
 from .problem import Evaluator, Problem, measured_segments, payload_of
 from .solve import StartResult, jacobian, latin_hypercube, run_starts, uncertainty
 from .spec import FitSpec, FitSpecError, load
@@ -58,12 +59,18 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
     try:
         _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
-        segments = [measured_segments(e, spec.options["segment"], flexible) for e in spec.experiments]
+        # Multiple shooting restarts each segment from the measured q, q' of every flexible
+        # joint; a motor drive's rotor state (theta_m, omega_m) is not measured that way.
+        motors = motor_joints(md)
+        segments = [
+            None if motors else measured_segments(e, spec.options["segment"], flexible) for e in spec.experiments
+        ]
         shooting = spec.options["shooting"]
         if shooting == "multiple" and any(s is None for s in segments):
             raise FitSpecError(
                 f'{spec.source}: [options] shooting = "multiple" needs every flexible joint\'s q measured '
-                f"(q[{'], q['.join(map(str, flexible))}]) in every experiment"
+                f"(q[{'], q['.join(map(str, flexible))}]) in every experiment, and no motor drives"
+                + (f" (this FMU has them on joints {motors})" if motors else "")
             )
         multiple = shooting == "multiple" or (shooting == "auto" and all(s is not None for s in segments))
         problem = Problem(spec, evaluator, segments)

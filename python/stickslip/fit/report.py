@@ -59,7 +59,7 @@ def fitted_toml(result: dict, spec) -> str:
     settings = {} if spec.options["error_tolerance"] is None else {"error_tolerance": spec.options["error_tolerance"]}
     lines = ["# The fitted parameters (stickslip fit). To rerun a fitted experiment:"]
     for e in spec.experiments:
-        sets = " ".join(f"--set '{n}={v:.17g}'" for n, v in {**settings, **e.parameters, **values}.items())
+        sets = " ".join(f"--set '{n}={_toml_value(v)}'" for n, v in {**settings, **e.parameters, **values}.items())
         lines.append(f"#   {e.name}: stickslip simulate --fmu {spec.fmu} {sets}")
     lines += [
         "# with the experiment's inputs as a motion file (--motion MOTION.toml).",
@@ -73,8 +73,12 @@ def fitted_toml(result: dict, spec) -> str:
         lines += ["", "[settings]"] + [f'"{n}" = {v!r}' for n, v in settings.items()]
     for e in spec.experiments:
         if e.parameters:
-            lines += ["", f'[known."{e.name}"]'] + [f'"{n}" = {float(v)!r}' for n, v in e.parameters.items()]
+            lines += ["", f'[known."{e.name}"]'] + [f'"{n}" = {_toml_value(v)}' for n, v in e.parameters.items()]
     return "\n".join(lines) + "\n"
+
+
+def _toml_value(v) -> str:
+    return ("true" if v else "false") if isinstance(v, bool) else repr(float(v))
 
 
 def report_md(result: dict, spec, figures: list) -> str:

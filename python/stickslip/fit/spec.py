@@ -366,6 +366,11 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
             raise FitSpecError(
                 f"{where}: parameters.{pname!r}: not a parameter of the FMU" + (f" (close: {close})" if close else "")
             )
+        if v.type == "Boolean":
+            if not isinstance(value, bool):
+                raise FitSpecError(f"{where}: parameters.{pname!r} = {value!r}: must be true or false")
+            parameters[pname] = value
+            continue
         parameters[pname] = _number(value, f"{where}: parameters.{pname!r}")
         _in_range(v, parameters[pname], f"{where}: parameters.{pname!r}")
     table = _read_csv(data_path, where)

@@ -26,10 +26,13 @@ def measure(
     motion=None,
     inputs: dict | None = None,
     seed: int = 0,
+    torques: dict | None = None,
 ) -> dict:
     """Columns of a measured run: ``t``, the commanded ``inputs`` {FMU input: column} at
     every sample (exact) and each of ``outputs`` {FMU output: (column, noise, resolution)}
-    with its encoder errors. ``motion`` defaults to the reference motion."""
+    with its encoder errors. ``motion`` defaults to the reference motion. ``torques``
+    {tau_m[i]: (column, function of t)}: motor torques, logged at every sample; the FMU gets
+    them as the fit does, through a cubic spline of the log (:class:`~stickslip.fit.spec.Torques`)."""
     from ..motion import reference_inputs
 
     motion = motion or reference_inputs
@@ -37,7 +40,14 @@ def measure(
     data = Path(fmu).read_bytes()
     t = np.round(np.arange(0.0, duration + 0.5 * step, step), 12)
     names = list(outputs)
-    result = run(content_hash(data), Payload("truth", t, motion, None, names, {}), dict(parameters), fmu_data=data)
+    logged = None
+    if torques:
+        from .spec import Torques
+
+        values = np.column_stack([[f(float(tk)) for tk in t] for _, f in torques.values()])
+        logged = Torques(t, list(torques), values)
+    payload = Payload("truth", t, motion, logged, names, {})
+    result = run(content_hash(data), payload, dict(parameters), fmu_data=data)
     if result.status != "ok":
         raise RuntimeError(f"the true parameters did not run: {result.status}: {result.message}")
     rng = np.random.default_rng(seed)
@@ -45,6 +55,8 @@ def measure(
     for name, column in inputs.items():
         i = int(name[name.index("[") + 1 : -1])
         columns[column] = np.array([motion(float(tk), step)[0][i - 1] for tk in t])
+    for k, (column, _) in enumerate((torques or {}).values()):
+        columns[column] = values[:, k]
     for k, name in enumerate(names):
         column, noise, resolution = outputs[name]
         y = result.values[:, k]
@@ -54,14 +66,8 @@ def measure(
     return columns
 
 
-def write_csv(columns: dict, path) -> None:
-    """The columns as a CSV with a header row, full precision."""
+def write_csv(columns: dict, path, digits: int = 17) -> None:
+    """The columns as a CSV with a header row, ``digits`` significant digits (17: exact)."""
     names = list(columns)
-    np.savetxt(
-        path,
-        np.column_stack([columns[n] for n in names]),
-        delimiter=",",
-        header=",".join(names),
-        comments="",
-        fmt="%.17g",
-    )
+    table = np.column_stack([columns[n] for n in names])
+    np.savetxt(path, table, delimiter=",", header=",".join(names), comments="", fmt=f"%.{digits}g")
