@@ -2,7 +2,8 @@
 //! tuned cases: variants of the reference arm drawn at random like the Monte
 //! Carlo example's (stiffness ±20 %, clearances from none to worn, kinetic
 //! 0.18–0.20 and static 0.20–0.22 friction), a third of them with drive
-//! damping (h up to 200) and a third with the decreasing characteristic, the
+//! damping (h up to 200), a third with the decreasing characteristic and a
+//! third with joint viscous friction (b_v up to 20 N·m·s/rad and 500 N·s/m), the
 //! 2 s reference motion at 1 ms communication steps.
 //!
 //! 1. Every run completes, whatever the sub-step: damped drives with
@@ -80,6 +81,13 @@ fn draw(seed: u64, index: u64) -> Variant {
             set(&mut model, Parameter::MuStatic, joint, rng.range(0.20, 0.22));
             set(&mut model, Parameter::MuKinetic, joint, rng.range(0.18, 0.20));
         }
+    }
+    // Joint viscous friction b_v in one draw of three, from a stream of its own, so that the
+    // draws above are those of the sample before b_v existed.
+    let mut viscous = Rng::new(seed.wrapping_mul(1_000_003).wrapping_add(index) ^ 0x5eed_b0u64);
+    if viscous.next_f64() < 1.0 / 3.0 {
+        set(&mut model, Parameter::Viscous, 0, viscous.range(0.0, 20.0));
+        set(&mut model, Parameter::Viscous, 2, viscous.range(0.0, 500.0));
     }
     model.validate().unwrap();
     Variant { label: format!("#{index}: {}", label.join(", ")), model }
