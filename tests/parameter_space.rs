@@ -84,7 +84,7 @@ fn draw(seed: u64, index: u64) -> Variant {
     }
     // Joint viscous friction b_v in one draw of three, from a stream of its own, so that the
     // draws above are those of the sample before b_v existed.
-    let mut viscous = Rng::new(seed.wrapping_mul(1_000_003).wrapping_add(index) ^ 0x5eed_b0u64);
+    let mut viscous = Rng::new(seed.wrapping_mul(1_000_003).wrapping_add(index) ^ 0x005e_edb0_u64);
     if viscous.next_f64() < 1.0 / 3.0 {
         set(&mut model, Parameter::Viscous, 0, viscous.range(0.0, 20.0));
         set(&mut model, Parameter::Viscous, 2, viscous.range(0.0, 500.0));
