@@ -39,6 +39,9 @@ QUICK=0
 if [ "${1:-}" = "--quick" ]; then
     QUICK=1
     shift
+    # The parameter-space sample (tests/parameter_space.rs, 24 variants, about 50 s)
+    # with its first 8 variants only.
+    export STICKSLIP_VARIANTS="${STICKSLIP_VARIANTS:-8}"
 fi
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
