@@ -205,15 +205,17 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
         set_value(slave, inst.by_name["use_start_values"], True)
         slave.setReal([inst.vr(f"q_start[{i}]") for i in joints], [float(x) for x in q0])
         slave.setReal([inst.vr(f"qd_start[{i}]") for i in joints], [float(x) for x in qd0])
+    set_drive, set_torques = _input_setter(slave, inst, payload)
     try:
         slave.enterInitializationMode()
-        _set_inputs(slave, inst, payload, float(t[first]), float(t[min(first + 1, last)] - t[first]))
+        set_drive(first)
+        if set_torques is not None:
+            set_torques(first)
         slave.exitInitializationMode()
     except FMICallException as e:
         raise _Refused(f"at initialization: {inst.reason(str(e))}") from None
     read = _reader(inst, tuple(payload.outputs))
     read(slave, values, first)
-    set_drive, set_torques = _input_setter(slave, inst, payload)
     for k in range(first, last):
         set_drive(k)
         if set_torques is not None:
@@ -287,18 +289,3 @@ def _input_setter(slave, inst: _Instance, payload: Payload) -> tuple:
             slave.fmi2SetRealInputDerivatives(component, tvrs, n, orders[1], acc)
 
     return set_drive, set_torques
-
-
-def _set_inputs(slave, inst: _Instance, payload: Payload, t: float, step: float) -> None:
-    """The inputs at time t (initialization; the steps use :func:`_input_setter`)."""
-    q, qd, qdd = payload.motion(t, step)
-    from ..motion import input_names
-
-    vrs = [inst.vr(name) for name in input_names(len(q))]
-    slave.setReal(vrs, [float(x) for x in (*q, *qd, *qdd)])
-    if payload.torques is not None:
-        value, rate, acc = payload.torques(t)
-        tvrs = [inst.vr(n) for n in payload.torques.names]
-        slave.setReal(tvrs, [float(x) for x in value])
-        slave.setRealInputDerivatives(tvrs, [1] * len(tvrs), [float(x) for x in rate])
-        slave.setRealInputDerivatives(tvrs, [2] * len(tvrs), [float(x) for x in acc])
