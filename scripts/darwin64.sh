@@ -28,6 +28,9 @@
 #                                      at once (niced), in a subshell
 #   darwin64_build                     both slices, merged into $DARWIN64_DYLIB
 
+# shellcheck source=scripts/cross-wrapper.sh
+source "$STICKSLIP_ROOT/scripts/cross-wrapper.sh"
+
 DARWIN64_TARGET_DIR="${CARGO_TARGET_DIR:-$STICKSLIP_ROOT/target}/darwin64"
 DARWIN64_CACHE_DIR="${STICKSLIP_CACHE_DIR:?scripts/env.sh sets STICKSLIP_CACHE_DIR}/darwin64"
 DARWIN64_CARGO_DIR="$STICKSLIP_CACHE_DIR/cross"   # shared with win64, see darwin64_cargo
@@ -90,7 +93,7 @@ PY
 }
 
 _darwin64_env() {
-    local triple var include zigdir
+    local triple var include zigdir cc link
     zigdir=$("$DARWIN64_ZIG_VENV/bin/python" -c 'import os, ziglang; print(os.path.dirname(ziglang.__file__))' 2>/dev/null) || {
         echo "darwin64.sh: no ziglang in $DARWIN64_ZIG_VENV (scripts/env.sh installs it with STICKSLIP_DARWIN64=1)" >&2
         return 1
@@ -115,10 +118,13 @@ _darwin64_env() {
     # bindgen (fmi-sys) parses the FMI headers for the Apple target with
     # libclang: clang's builtin headers (stddef.h) and zig's macOS headers.
     include=$(ls -d "${LIBCLANG_PATH:-/usr/lib/llvm-14/lib}"/clang/*/include 2>/dev/null | sort -V | tail -n1)
+    # The wrappers' copies named by their content (scripts/cross-wrapper.sh):
+    # the linker's path is in every unit's fingerprint, std's included.
+    cc=$(cross_wrapper darwin-cc.sh) && link=$(cross_wrapper darwin-link.sh) || return 1
     for triple in "${DARWIN64_TRIPLES[@]}"; do
         var=$(echo "$triple" | tr 'a-z-' 'A-Z_')
-        export "CC_${triple//-/_}=$STICKSLIP_ROOT/scripts/darwin-cc.sh"
-        export "CARGO_TARGET_${var}_LINKER=$STICKSLIP_ROOT/scripts/darwin-link.sh"
+        export "CC_${triple//-/_}=$cc"
+        export "CARGO_TARGET_${var}_LINKER=$link"
         export "BINDGEN_EXTRA_CLANG_ARGS_${triple//-/_}=-I$include -isystem $zigdir/lib/libc/include/any-darwin-any"
     done
 }

@@ -9,7 +9,9 @@
 #     LIBCLANG_PATH is exported pointing at the directory holding libclang.so.
 #   * a Python venv at $STICKSLIP_VENV (default: <repo>/.venv) exists and has
 #     requirements.txt installed; it is re-installed only when requirements.txt
-#     changes (sha256 stamp kept in the venv). Its bin/ is first on PATH, so
+#     changes (sha256 stamp kept in the venv). uv (pinned in
+#     scripts/uv-requirements.txt, in a venv of its own in the cache) makes it
+#     from the wheels in its cache, $STICKSLIP_CACHE_DIR/uv. Its bin/ is first on PATH, so
 #     `python` and `pytest` are the venv's.
 #   * the package `stickslip` of pyproject.toml (python/stickslip, command
 #     `stickslip`) is installed into the venv in editable mode; re-installed
@@ -186,9 +188,33 @@ _stickslip_ensure_libclang() {
     return 1
 }
 
-_stickslip_ensure_venv() {
-    local root="$1" venv="$2" req="$1/requirements.txt" py want have=""
+_stickslip_ensure_uv() {
+    # uv (PyPI, pinned in scripts/uv-requirements.txt) installs the venvs: it
+    # keeps each wheel once, unpacked, in its cache ($STICKSLIP_CACHE_DIR/uv,
+    # keyed by the wheel's name, version and hash) and links or copies it into
+    # a new venv, so a fresh clone's .venv takes 2 s instead of pip's 90 s of
+    # unpacking. uv itself lives in a venv of its own in the cache, made again
+    # when that file changes. Prints the uv binary.
+    local root="$1" boot req want have="" py
     py="${PYTHON:-python3}"
+    req="$root/scripts/uv-requirements.txt"
+    want=$(cat "$req" | sha256sum | cut -c1-16) || return 1
+    boot="$STICKSLIP_CACHE_DIR/uv-$want"
+    [ -f "$boot/.ready" ] && [ -x "$boot/bin/uv" ] && { printf '%s\n' "$boot/bin/uv"; return 0; }
+    _stickslip_log "installing uv ($(grep -v '^#' "$req" | tr '\n' ' ')) into $boot..."
+    rm -rf "$boot"
+    "$py" -m venv "$boot" </dev/null >&2 || { _stickslip_log "ERROR: '$py -m venv $boot' failed"; return 1; }
+    PIP_DISABLE_PIP_VERSION_CHECK=1 "$boot/bin/python" -m pip install -q --no-input -r "$req" </dev/null >&2 || {
+        _stickslip_log "ERROR: pip install -r $req failed"; return 1; }
+    touch "$boot/.ready"
+    printf '%s\n' "$boot/bin/uv"
+}
+
+_stickslip_ensure_venv() {
+    local root="$1" venv="$2" req="$1/requirements.txt" py want have="" uv
+    py="${PYTHON:-python3}"
+    uv=$(_stickslip_ensure_uv "$root") || return 1
+    export UV_CACHE_DIR="${UV_CACHE_DIR:-$STICKSLIP_CACHE_DIR/uv}"
     # -x follows the symlink: a venv whose base interpreter vanished is rebuilt.
     if [ ! -x "$venv/bin/python" ]; then
         if ! command -v "$py" >/dev/null 2>&1; then
@@ -196,17 +222,16 @@ _stickslip_ensure_venv() {
         fi
         _stickslip_log "creating Python venv at $venv (with $("$py" --version 2>&1))..."
         rm -rf "$venv"
-        "$py" -m venv "$venv" </dev/null >&2 || {
-            _stickslip_log "ERROR: '$py -m venv $venv' failed"; return 1; }
+        "$uv" venv -q --python "$(command -v "$py")" "$venv" </dev/null >&2 || {
+            _stickslip_log "ERROR: 'uv venv $venv' failed"; return 1; }
     fi
     [ -f "$req" ] || return 0
     want=$(sha256sum "$req" | cut -d' ' -f1) || return 1
     [ -f "$venv/.requirements.sha256" ] && have=$(cat "$venv/.requirements.sha256")
     if [ "$want" != "$have" ]; then
         _stickslip_log "installing requirements.txt into $venv (changed since last install)..."
-        PIP_DISABLE_PIP_VERSION_CHECK=1 "$venv/bin/python" -m pip install -q \
-            --no-input -r "$req" </dev/null >&2 || {
-            _stickslip_log "ERROR: pip install -r requirements.txt failed"; return 1; }
+        VIRTUAL_ENV="$venv" "$uv" pip install -q -r "$req" </dev/null >&2 || {
+            _stickslip_log "ERROR: uv pip install -r requirements.txt failed"; return 1; }
         printf '%s\n' "$want" >"$venv/.requirements.sha256"
     fi
     [ -f "$root/pyproject.toml" ] || return 0
@@ -214,10 +239,9 @@ _stickslip_ensure_venv() {
     have=""
     [ -f "$venv/.package.sha256" ] && have=$(cat "$venv/.package.sha256")
     if [ "$want" != "$have" ] || [ ! -x "$venv/bin/stickslip" ]; then
-        _stickslip_log "installing the stickslip package (pip install -e .) into $venv..."
-        PIP_DISABLE_PIP_VERSION_CHECK=1 "$venv/bin/python" -m pip install -q --no-input \
-            --no-build-isolation --no-deps -e "$root" </dev/null >&2 || {
-            _stickslip_log "ERROR: pip install -e $root failed"; return 1; }
+        _stickslip_log "installing the stickslip package (editable) into $venv..."
+        VIRTUAL_ENV="$venv" "$uv" pip install -q --no-build-isolation --no-deps -e "$root" </dev/null >&2 || {
+            _stickslip_log "ERROR: uv pip install -e $root failed"; return 1; }
         printf '%s\n' "$want" >"$venv/.package.sha256"
     fi
     return 0
@@ -264,7 +288,7 @@ else
     _stickslip_env_rc=1
     _stickslip_log "environment setup FAILED"
 fi
-unset -f _stickslip_env_main _stickslip_ensure_sccache _stickslip_ensure_darwin64 _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
+unset -f _stickslip_env_main _stickslip_ensure_uv _stickslip_ensure_sccache _stickslip_ensure_darwin64 _stickslip_ensure_venv _stickslip_ensure_libclang _stickslip_ensure_win64_packages _stickslip_apt_install _stickslip_find_libclang_dir _stickslip_log
 # `return` when sourced, `exit` when run as a script.
 if [ "$_stickslip_env_rc" -eq 0 ]; then
     unset _stickslip_env_rc

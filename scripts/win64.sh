@@ -23,6 +23,9 @@
 #                                   subshell: nothing leaks into the Linux builds
 #   win64_wine_prefix               makes the test-only wine prefix (see below)
 
+# shellcheck source=scripts/cross-wrapper.sh
+source "$STICKSLIP_ROOT/scripts/cross-wrapper.sh"
+
 WIN64_TARGET=x86_64-pc-windows-gnu
 WIN64_TARGET_DIR="${STICKSLIP_CACHE_DIR:?scripts/env.sh sets STICKSLIP_CACHE_DIR}/cross"
 WIN64_LOCK="$WIN64_TARGET_DIR.lock"
@@ -43,7 +46,10 @@ _win64_env() {
     # those of the libclang env.sh found.
     include=$(ls -d "${LIBCLANG_PATH:-/usr/lib/llvm-14/lib}"/clang/*/include 2>/dev/null | sort -V | tail -n1)
     export BINDGEN_EXTRA_CLANG_ARGS_x86_64_pc_windows_gnu="-I$include"
-    export CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER="$STICKSLIP_ROOT/scripts/mingw-link.sh"
+    # The linker wrapper's copy named by its content (scripts/cross-wrapper.sh):
+    # its path is in every unit's fingerprint.
+    CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=$(cross_wrapper mingw-link.sh) || return 1
+    export CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER
     export CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER=wine
     # The wine prefix: per wine version (a new wine makes a new prefix).
     export WINEPREFIX="$STICKSLIP_CACHE_DIR/wineprefix-$(wine --version 2>/dev/null | tr -c 'A-Za-z0-9.\n-' _)"
@@ -51,7 +57,7 @@ _win64_env() {
 }
 
 win64_cargo() (
-    _win64_env
+    _win64_env || exit 1
     nice /usr/bin/cargo "$1" -Zbuild-std=std,panic_unwind -Zchecksum-freshness --target "$WIN64_TARGET" \
         --target-dir "$WIN64_TARGET_DIR" "${@:2}"
 )
@@ -62,7 +68,7 @@ win64_cargo() (
 # (tests/win64/bcryptprimitives.c) in its system32, so that any Windows program
 # of this build runs with a plain `wine` runner. The FMU never contains it.
 win64_wine_prefix() (
-    _win64_env
+    _win64_env || exit 1
     local src="$STICKSLIP_ROOT/tests/win64/bcryptprimitives.c" standin
     # Named by the content of its source: a changed stand-in is compiled anew.
     standin="$WIN64_TARGET_DIR/bcryptprimitives-$(sha256sum "$src" | cut -c1-16).dll"
