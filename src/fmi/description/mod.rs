@@ -10,6 +10,7 @@
 //! `crate::model`, `crate::error`, `crate::math`, `crate::stepper::State`,
 //! `super::…` and the `quick_xml` crate.
 
+mod arrays;
 mod documentation;
 mod hash;
 mod joints;
@@ -17,7 +18,9 @@ mod outputs;
 mod units;
 mod variables;
 mod writer;
+mod writer3;
 
+pub use arrays::{variables3, Type3, Variable3};
 pub use documentation::{documentation_html, drive_colour_index, escape_html, DRIVE_COLOURS};
 pub use hash::{fnv1a_64, Fnv1a128};
 pub(crate) use joints::joint_units;
@@ -27,6 +30,7 @@ pub use variables::{
     guid, model_hash, variables, Causality, Initial, InputField, Quantity, Setting, Type, Variability, Variable,
 };
 pub use writer::model_description_xml;
+pub use writer3::model_description_fmi3_xml;
 
 /// The modelIdentifier: file name of the shared library in the FMU and of the
 /// FMU itself.
