@@ -5,6 +5,8 @@ pub mod algorithms;
 pub mod data;
 pub mod error;
 pub mod fmi;
+#[doc(hidden)]
+pub mod fmi3;
 pub mod forces;
 pub mod math;
 pub mod model;

@@ -184,7 +184,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
 
 /// The text of the URDF a packaged model file names: a plain file name in
 /// `resources/`, as the packaging writes it.
-fn model_urdf(resources: &std::path::Path, model_text: &str) -> Result<Option<String>, String> {
+pub(crate) fn model_urdf(resources: &std::path::Path, model_text: &str) -> Result<Option<String>, String> {
     let Some(name) = Model::urdf_reference(model_text) else { return Ok(None) };
     if name.is_empty() || name.contains(['/', '\\']) || name == ".." {
         return Err(format!(

@@ -10,7 +10,8 @@ use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
 use crate::model::{Model, ModelSource};
 use crate::stepper::{
-    DriveInputs, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES, MOTOR_TORQUE_RANGES,
+    DriveInputs, Flow, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, SubStep, INPUT_RANGES,
+    MOTOR_TORQUE_RANGES,
 };
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
 
@@ -186,7 +187,7 @@ impl Instance {
     }
 
     /// The FMU's time: the engine's once it runs, else the start time.
-    fn time(&self) -> f64 {
+    pub(crate) fn time(&self) -> f64 {
         if self.lifecycle.is_running() {
             self.sim.state().time
         } else {
@@ -608,6 +609,52 @@ impl Instance {
 
     /// fmi2DoStep.
     pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Outcome {
+        self.step(t, h, None).map(|(status, _)| status)
+    }
+
+    /// fmi3DoStep with an observer of the sub-steps (FMI 3.0's intermediate
+    /// update and early return): `after` is told at the end of each sub-step
+    /// before the step's end and may end the step there ([`Flow::Stop`]).
+    pub(crate) fn do_step_observed(
+        &mut self,
+        t: f64,
+        h: f64,
+        after: &mut dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>,
+    ) -> Result<(Status, Flow), Fault> {
+        self.step(t, h, Some(after))
+    }
+
+    /// The drive inputs and motor torques become the values the engine holds
+    /// now (their Taylor polynomials at the current time): after a step that
+    /// returned early, or took inputs at its sub-steps, the next step goes on
+    /// with them unless the master sets others.
+    pub(crate) fn hold_inputs_now(&mut self) {
+        let [x, xd, xdd] = &mut self.inputs;
+        let [u, ud, udd] = &mut self.torques;
+        self.sim.held_inputs([x, xd, xdd], [u, ud, udd]);
+    }
+
+    /// The variables of the FMU (the FMI 2.0 layout).
+    pub(crate) fn variables(&self) -> &[Variable] {
+        &self.variables
+    }
+
+    /// Where the instance is in the FMI 2.0 life cycle.
+    pub(crate) fn lifecycle(&self) -> LifeCycle {
+        self.lifecycle
+    }
+
+    /// The engine.
+    pub(crate) fn simulator(&self) -> &Simulator {
+        &self.sim
+    }
+
+    fn step(
+        &mut self,
+        t: f64,
+        h: f64,
+        after: Option<&mut dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>>,
+    ) -> Result<(Status, Flow), Fault> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Fault::error(format!("communicationStepSize = {h} s: must be positive and finite")));
         }
@@ -624,16 +671,20 @@ impl Instance {
         // Checked when set: every value lies in its range.
         self.sim.set_motor_torques(&motor_torques(&self.torques)).map_err(|e| Fault::error(e.to_string()))?;
         let variables = &self.variables;
-        let result = self.sim.advance_checked(&drive_inputs(&self.inputs), h, |s| finite_outputs(variables, s));
+        let check = |s: &State| finite_outputs(variables, s);
+        let result = match after {
+            None => self.sim.advance_checked(&drive_inputs(&self.inputs), h, check).map(|()| Flow::Continue),
+            Some(after) => self.sim.advance_observed(&drive_inputs(&self.inputs), h, check, |s| after(s)),
+        };
         if result.is_err() {
             // Phase changes of a step that was not taken did not happen.
             self.sim.clear_transitions();
         }
         match result {
-            Ok(()) => {
+            Ok(flow) => {
                 self.log_transitions();
                 self.lifecycle = LifeCycle::StepComplete;
-                Ok(Status::Ok)
+                Ok((Status::Ok, flow))
             }
             // The step cannot be completed, and the engine left the state at
             // its start: fmi2Discard, so that the master can react.

@@ -3,6 +3,7 @@
 use super::description::LOG_CATEGORIES;
 use super::status::Status;
 use fmi_sys::fmi2::{fmi2CallbackLogger, fmi2ComponentEnvironment};
+use fmi_sys::fmi3::{fmi3InstanceEnvironment, fmi3LogMessageCallback};
 use std::ffi::CString;
 
 /// A log category of the modelDescription (`logAll` is only a name for all
@@ -46,6 +47,9 @@ pub(crate) type MemoryLog = std::rc::Rc<std::cell::RefCell<Vec<(Status, &'static
 enum Sink {
     /// The master's `fmi2CallbackLogger`.
     Callback { callback: fmi2CallbackLogger, environment: fmi2ComponentEnvironment, instance_name: CString },
+    /// The master's `fmi3LogMessageCallback` (FMI 3.0: no instance name, no
+    /// printf format).
+    Fmi3 { callback: fmi3LogMessageCallback, environment: fmi3InstanceEnvironment },
     /// Kept in memory, for the unit tests.
     #[cfg(test)]
     Memory(MemoryLog),
@@ -68,6 +72,15 @@ impl Logger {
         logging_on: bool,
     ) -> Logger {
         Logger::with_sink(Sink::Callback { callback, environment, instance_name }, logging_on)
+    }
+
+    /// A logger calling the FMI 3.0 `callback` with `environment`.
+    pub(crate) fn fmi3(
+        callback: fmi3LogMessageCallback,
+        environment: fmi3InstanceEnvironment,
+        logging_on: bool,
+    ) -> Logger {
+        Logger::with_sink(Sink::Fmi3 { callback, environment }, logging_on)
     }
 
     fn with_sink(sink: Sink, logging_on: bool) -> Logger {
@@ -128,6 +141,14 @@ impl Logger {
                 unsafe {
                     callback(*environment, instance_name.as_ptr(), status.to_fmi(), category.as_ptr(), text.as_ptr())
                 }
+            }
+            Sink::Fmi3 { callback, environment } => {
+                let Some(callback) = callback else { return };
+                let text = CString::new(message.replace('\0', " ")).unwrap_or_default();
+                let category = CString::new(name).unwrap_or_default();
+                // SAFETY: the master's callback, given at fmi3InstantiateCoSimulation,
+                // takes these NUL-terminated strings, which outlive the call.
+                unsafe { callback(*environment, status.to_fmi(), category.as_ptr(), text.as_ptr()) }
             }
             #[cfg(test)]
             Sink::Memory(list) => list.borrow_mut().push((status, name, message.to_string())),

@@ -14,15 +14,15 @@
 //! * [`icon`] — the FMU's `model.png`, a picture of the chain (used by the
 //!   `package_fmu` binary).
 
-mod boundary;
+pub(crate) mod boundary;
 pub mod description;
-mod exports;
+pub(crate) mod exports;
 pub mod icon;
-mod instance;
-mod lifecycle;
-mod logger;
+pub(crate) mod instance;
+pub(crate) mod lifecycle;
+pub(crate) mod logger;
 mod snapshot;
-mod status;
+pub(crate) mod status;
 #[cfg(test)]
 mod tests;
 pub mod uri;

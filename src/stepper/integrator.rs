@@ -85,6 +85,38 @@ enum Event {
     Release(usize, f64),
 }
 
+/// Whether a communication interval goes on after a sub-step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flow {
+    /// On to the interval's end.
+    Continue,
+    /// The interval ends here (FMI 3.0's early return).
+    Stop,
+}
+
+/// What runs after each accepted sub-step inside a communication interval
+/// (not after the last one, which ends the interval): see
+/// [`Simulator::advance_observed`](super::Simulator::advance_observed).
+pub(crate) trait AfterSubStep {
+    /// False for [`NoObserver`]: the stepping loop then compiles to what it
+    /// is without an observer.
+    const ACTIVE: bool = true;
+    /// Called with the integrator at the end of a sub-step; `event` when the
+    /// sub-step ended at an event (see [`Integrator::substep`]).
+    fn substep_finished(&mut self, core: &mut Integrator, event: bool) -> Result<Flow, StepError>;
+}
+
+/// The observer of [`Simulator::advance`](super::Simulator::advance): none.
+pub(crate) struct NoObserver;
+
+impl AfterSubStep for NoObserver {
+    const ACTIVE: bool = false;
+    #[inline(always)]
+    fn substep_finished(&mut self, _: &mut Integrator, _: bool) -> Result<Flow, StepError> {
+        Ok(Flow::Continue)
+    }
+}
+
 /// How [`Integrator::substep`] chooses its length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum StepControl {
@@ -123,8 +155,12 @@ impl Integrator {
     /// crosses an edge of its clearance), the sub-step is shortened to end
     /// just past that instant, located by Illinois regula falsi; a joint's
     /// phase is decided there.
+    ///
+    /// Returns whether the sub-step ended at an event: a located phase,
+    /// clearance or release event, or a phase change at its start.
     #[inline(always)]
-    pub(crate) fn substep(&mut self, t_target: f64, control: StepControl) -> Result<(), StepError> {
+    pub(crate) fn substep(&mut self, t_target: f64, control: StepControl) -> Result<bool, StepError> {
+        let changes = self.transition_count();
         // A phase change that could not happen at the previous instant (a
         // marginal slip) is tried again at this one.
         self.instant += 1;
@@ -172,7 +208,7 @@ impl Integrator {
             steps.next_h = proposal.clamp(settings.h_min, settings.h_max);
         }
         let Some(event) = self.earliest_event() else {
-            return self.accept();
+            return self.accept().map(|()| self.transition_count() != changes);
         };
         let (mut lo, mut hi) = (0.0, 1.0);
         let (mut g_lo, mut g_hi) = (self.event_value(event, &self.start), self.event_value(event, &self.state));
@@ -221,7 +257,13 @@ impl Integrator {
             }
             _ => {}
         }
-        self.settle_phases()
+        self.settle_phases().map(|()| true)
+    }
+
+    /// Phase changes so far, kept or only counted.
+    #[inline(always)]
+    fn transition_count(&self) -> usize {
+        self.transitions.len() + self.transitions_dropped
     }
 
     /// The value of `event`'s margin in `state`: positive before the event,
@@ -444,8 +486,13 @@ impl Integrator {
 
     /// [`Integrator::step_interval`] compiled for the baseline instruction set.
     #[inline(never)]
-    pub(crate) fn step_interval_baseline(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
-        self.step_interval(t0, interval)
+    pub(crate) fn step_interval_baseline<F: AfterSubStep>(
+        &mut self,
+        t0: f64,
+        interval: f64,
+        after: &mut F,
+    ) -> Result<Flow, StepError> {
+        self.step_interval(t0, interval, after)
     }
 
     /// [`Integrator::step_interval`] compiled with AVX2.
@@ -455,8 +502,13 @@ impl Integrator {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
-    pub(crate) unsafe fn step_interval_avx2(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
-        self.step_interval(t0, interval)
+    pub(crate) unsafe fn step_interval_avx2<F: AfterSubStep>(
+        &mut self,
+        t0: f64,
+        interval: f64,
+        after: &mut F,
+    ) -> Result<Flow, StepError> {
+        self.step_interval(t0, interval, after)
     }
 
     /// The sub-steps of the interval from `t0` of length `interval`.
@@ -464,30 +516,39 @@ impl Integrator {
     /// Error-controlled: each of the length the last one proposed (h_min at
     /// the start), the last one shortened to end at the interval's end, and a
     /// remainder below two proposals split in halves so that no sliver is
-    /// left. Either way a sub-step ends early at an event. Inlined into its
-    /// two instruction-set variants, as is everything it calls per sub-step.
+    /// left. Either way a sub-step ends early at an event. After each
+    /// sub-step that ends before the interval's end, `after` is told (FMI
+    /// 3.0's intermediate update) and may end the interval there
+    /// ([`Flow::Stop`], FMI 3.0's early return). Inlined into its two
+    /// instruction-set variants, as is everything it calls per sub-step.
     #[inline(always)]
-    fn step_interval(&mut self, t0: f64, interval: f64) -> Result<(), StepError> {
+    fn step_interval<F: AfterSubStep>(&mut self, t0: f64, interval: f64, after: &mut F) -> Result<Flow, StepError> {
         let settings = self.model.integrator;
         let budget = work_budget(&settings, interval);
+        let t_end = t0 + interval;
         if settings.fixed_step() {
             let h_max = settings.h_max;
             let steps = (interval / h_max).ceil().max(1.0);
             let h = interval / steps;
             let steps = steps as u64;
             for k in 1..=steps {
-                let t_grid = if k == steps { t0 + interval } else { t0 + k as f64 * h };
+                let t_grid = if k == steps { t_end } else { t0 + k as f64 * h };
                 // An event shortens a sub-step; the rest of it up to the grid
                 // point is taken next.
                 while t_grid - self.state.time > 1e-9 * h {
-                    self.substep(t_grid, StepControl::Fixed)?;
+                    let event = self.substep(t_grid, StepControl::Fixed)?;
                     self.check_work(budget)?;
+                    if F::ACTIVE
+                        && t_end - self.state.time > 1e-9 * h
+                        && after.substep_finished(self, event)? == Flow::Stop
+                    {
+                        return Ok(Flow::Stop);
+                    }
                 }
                 self.state.time = t_grid;
             }
-            return Ok(());
+            return Ok(Flow::Continue);
         }
-        let t_end = t0 + interval;
         loop {
             let remaining = t_end - self.state.time;
             if remaining <= 1e-9 * settings.h_min {
@@ -506,11 +567,17 @@ impl Integrator {
             } else {
                 (self.state.time + h, false)
             };
-            self.substep(target, StepControl::Adaptive { shortened })?;
+            let event = self.substep(target, StepControl::Adaptive { shortened })?;
             self.check_work(budget)?;
+            if F::ACTIVE
+                && t_end - self.state.time > 1e-9 * settings.h_min
+                && after.substep_finished(self, event)? == Flow::Stop
+            {
+                return Ok(Flow::Stop);
+            }
         }
         self.state.time = t_end;
-        Ok(())
+        Ok(Flow::Continue)
     }
 
     /// [`StepError::TooMuchWork`] once the interval has cost more than

@@ -2,9 +2,10 @@
 //! communication intervals by the iterative Newmark stepper.
 
 use super::inputs::{DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
-use super::integrator::{Integrator, Transition};
+use super::integrator::{AfterSubStep, Flow, Integrator, NoObserver, Transition};
 use super::isa::InstructionSet;
 use super::state::{Phase, State};
+use super::substep::{held, Observer, SubStep};
 use crate::algorithms::energy::{kinetic_energy, potential_energy};
 use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics, update_joint_transforms};
 use crate::algorithms::rnea::{joint_reactions, rnea};
@@ -173,6 +174,13 @@ impl Simulator {
         check_input_values(self.core.model.nq(), MOTOR_TORQUE_RANGES, values)?;
         self.core.torques.set_values(self.core.state.time, values);
         Ok(())
+    }
+
+    /// The drive inputs and motor torques the engine holds at the current
+    /// time (their Taylor polynomials), into `drive` and `torques`.
+    pub(crate) fn held_inputs(&self, drive: [&mut [f64]; 3], torques: [&mut [f64]; 3]) {
+        held(&self.core.inputs, self.core.state.time, drive);
+        held(&self.core.torques, self.core.state.time, torques);
     }
 
     /// Where the rotors of motor drives start at the next
@@ -384,14 +392,51 @@ impl Simulator {
         self.check_model()?;
         self.saved.copy_from(&self.core.state);
         self.core.solver.reset_count();
-        let result = self.advance_inner(inputs, interval).and_then(|()| self.checked(check));
+        let result = self.advance_inner(inputs, interval, &mut NoObserver).and_then(|_| self.checked(check));
         if result.is_err() {
             self.core.state.copy_from(&self.saved);
         }
         result
     }
 
-    fn advance_inner(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
+    /// [`Simulator::advance_checked`] with `after` told at the end of every
+    /// sub-step before the interval's end (FMI 3.0's intermediate update),
+    /// which may end the interval there ([`Flow::Stop`], FMI 3.0's early
+    /// return): then the state is at that sub-step's end, and the interval
+    /// was shorter than `interval`. The inputs `after` sets through
+    /// [`SubStep`] hold from the sub-step's end on.
+    pub(crate) fn advance_observed<F: FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>>(
+        &mut self,
+        inputs: &DriveInputs,
+        interval: f64,
+        check: impl FnOnce(&State) -> Result<(), (String, f64)>,
+        after: F,
+    ) -> Result<Flow, StepError> {
+        if !(interval.is_finite() && interval > 0.0) {
+            return Err(StepError::InvalidInterval { interval });
+        }
+        self.check_inputs(inputs)?;
+        if !self.initialized {
+            return Err(StepError::NotInitialized);
+        }
+        self.check_model()?;
+        self.saved.copy_from(&self.core.state);
+        self.core.solver.reset_count();
+        let mut observer = Observer { after, scratch: self.scratch.clone(), report: None };
+        let result = self.advance_inner(inputs, interval, &mut observer);
+        let result = result.and_then(|flow| self.checked(check).map(|()| flow));
+        if result.is_err() {
+            self.core.state.copy_from(&self.saved);
+        }
+        result
+    }
+
+    fn advance_inner<F: AfterSubStep>(
+        &mut self,
+        inputs: &DriveInputs,
+        interval: f64,
+        after: &mut F,
+    ) -> Result<Flow, StepError> {
         let t0 = self.core.state.time;
         self.core.inputs.set(t0, inputs);
         // Inputs may differ from the previous interval's extrapolation: make
@@ -401,17 +446,17 @@ impl Simulator {
         self.core.evaluate()?;
         self.core.instant += 1;
         self.core.settle_phases()?;
-        self.update_energies();
+        update_energies(&mut self.core);
         self.core.state.energy.drive_work += self.core.state.energy.total() - before;
-        match self.instruction_set {
+        let flow = match self.instruction_set {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `instruction_set` is Avx2 only if the processor has AVX2
             // (`best_available`, `set_instruction_set`).
-            InstructionSet::Avx2 => unsafe { self.core.step_interval_avx2(t0, interval) }?,
-            _ => self.core.step_interval_baseline(t0, interval)?,
-        }
+            InstructionSet::Avx2 => unsafe { self.core.step_interval_avx2(t0, interval, after) }?,
+            _ => self.core.step_interval_baseline(t0, interval, after)?,
+        };
         self.update_reported();
-        Ok(())
+        Ok(flow)
     }
 
     /// `check` of the current state as a step result.
@@ -426,52 +471,60 @@ impl Simulator {
     /// Recomputes the reported quantities that are not needed while stepping:
     /// energies, all joint reactions and end points.
     pub(crate) fn update_reported(&mut self) {
-        self.update_energies();
-        joint_reactions(&self.core.model, &mut self.core.data);
-        // Reported in the frame the user described each link in (URDF: the
-        // child link frame); the identity for Denavit–Hartenberg joints.
-        for (i, joint) in self.core.model.joints.iter().enumerate() {
-            self.core.state.reaction_force[i] = joint.reported_axes * self.core.data.reaction_force[i];
-            self.core.state.reaction_moment[i] = joint.reported_axes * self.core.data.reaction_moment[i];
-        }
-        let model = &self.core.model;
-        let st = &mut self.core.state;
-        st.end_point = end_point(model, &self.core.data);
-        // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
-        self.scratch.copy_from_slice(&st.q_star);
-        forward_kinematics(model, &mut self.core.data, &self.scratch);
-        // The next interval starts from the library's sines of its own q.
-        forget_joint_transforms(&mut self.core.data);
-        st.end_point_rigid = end_point(model, &self.core.data);
+        update_reported(&mut self.core, &mut self.scratch);
     }
+}
 
-    /// Kinetic, gravity and spring energy of the current state; leaves the
-    /// frame-0 kinematics of the current coordinates in the workspace.
-    fn update_energies(&mut self) {
-        let (model, st) = (&self.core.model, &mut self.core.state);
-        let n = model.nq();
-        forward_kinematics(model, &mut self.core.data, &st.q[..n]);
-        st.energy.kinetic = kinetic_energy(model, &self.core.data, &st.qd[..n]);
-        st.energy.potential = potential_energy(model, &self.core.data);
-        st.energy.spring = model
-            .joints
-            .iter()
-            .enumerate()
-            .map(|(i, j)| {
-                j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i]))
-            })
-            .sum();
-        st.energy.rotor_kinetic = self
-            .core
-            .solver
-            .rotors()
-            .iter()
-            .enumerate()
-            .filter_map(|(r, &j)| {
-                model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r])
-            })
-            .sum();
+/// Recomputes the reported quantities of `core`'s state (see
+/// [`Simulator::update_reported`]); `scratch` is a joint vector.
+fn update_reported(core: &mut Integrator, scratch: &mut [f64]) {
+    report(&core.model, &mut core.data, &mut core.state, core.solver.rotors(), scratch);
+}
+
+/// The reported quantities of `st` (energies, joint reactions, end points),
+/// with `data` evaluated at `st`.
+pub(super) fn report(model: &Model, data: &mut Data, st: &mut State, rotors: &[usize], scratch: &mut [f64]) {
+    update_energies_of(model, data, st, rotors);
+    joint_reactions(model, data);
+    // Reported in the frame the user described each link in (URDF: the
+    // child link frame); the identity for Denavit–Hartenberg joints.
+    for (i, joint) in model.joints.iter().enumerate() {
+        st.reaction_force[i] = joint.reported_axes * data.reaction_force[i];
+        st.reaction_moment[i] = joint.reported_axes * data.reaction_moment[i];
     }
+    st.end_point = end_point(model, data);
+    // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
+    scratch.copy_from_slice(&st.q_star);
+    forward_kinematics(model, data, scratch);
+    // The next interval starts from the library's sines of its own q.
+    forget_joint_transforms(data);
+    st.end_point_rigid = end_point(model, data);
+}
+
+/// Kinetic, gravity and spring energy of `core`'s state; leaves the
+/// frame-0 kinematics of the current coordinates in the workspace.
+pub(super) fn update_energies(core: &mut Integrator) {
+    update_energies_of(&core.model, &mut core.data, &mut core.state, core.solver.rotors());
+}
+
+fn update_energies_of(model: &Model, data: &mut Data, st: &mut State, rotors: &[usize]) {
+    let n = model.nq();
+    forward_kinematics(model, data, &st.q[..n]);
+    st.energy.kinetic = kinetic_energy(model, data, &st.qd[..n]);
+    st.energy.potential = potential_energy(model, data);
+    st.energy.spring = model
+        .joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i])))
+        .sum();
+    st.energy.rotor_kinetic = rotors
+        .iter()
+        .enumerate()
+        .filter_map(|(r, &j)| {
+            model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r])
+        })
+        .sum();
 }
 
 /// The phase a spring-driven joint or a rotor starts in at velocity `qd`:
@@ -489,7 +542,11 @@ fn phase_at_start(qd: f64, holds: bool) -> Phase {
 
 /// Checks three input vectors (a value and its two derivatives) against
 /// their names and ranges: n values each, finite, inside the range.
-fn check_input_values(n: usize, ranges: [(&'static str, Range); 3], values: [&[f64]; 3]) -> Result<(), StepError> {
+pub(super) fn check_input_values(
+    n: usize,
+    ranges: [(&'static str, Range); 3],
+    values: [&[f64]; 3],
+) -> Result<(), StepError> {
     for ((field, range), values) in ranges.into_iter().zip(values) {
         if values.len() != n {
             return Err(StepError::InputLength { field, expected: n, got: values.len() });
