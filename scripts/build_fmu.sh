@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# scripts/build_fmu.sh -- builds the FMI 2.0 co-simulation FMU.
+# scripts/build_fmu.sh -- builds the FMI 2.0 co-simulation FMU and, beside it,
+# the FMI 3.0 one (<name>-fmi3.fmu, docs/fmi3.md) of the same model.
 #
 #   bash scripts/build_fmu.sh [--platforms linux64,win64,darwin64] [package_fmu args...]
 #
@@ -11,8 +12,11 @@
 #                     `--platforms linux64` skips the cross-builds while
 #                     iterating.
 #
-#   1. linux64: cargo build --release --lib --bin package_fmu   (the cdylib;
-#      build.rs also writes modelDescription/modelDescription.xml)
+#   1. linux64: cargo build --release -p stick_slip_manipulator
+#      -p stick_slip_manipulator_fmi3 --lib --bin package_fmu (the FMI 2.0
+#      cdylib, the FMI 3.0 one of the crate fmi3/ and the packager; build.rs
+#      also writes modelDescription/modelDescription.xml). Each step below
+#      does the same for both libraries.
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
 #      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir
 #      $STICKSLIP_CACHE_DIR/cross (outside the clone, shared by every clone)
@@ -25,13 +29,14 @@
 #      darwin64 dylib is linked stripped: stripping afterwards would break
 #      the arm64 slice's code signature)
 #   4. checks every shipped binary's interface: exactly the 34 FMI 2.0
-#      functions exported; the DLL imports Windows system DLLs only; each
+#      functions exported (the 75 FMI 3.0 ones for the FMI 3.0 library); the DLL imports Windows system DLLs only; each
 #      darwin64 slice imports libSystem only, has the install name
 #      @rpath/StickSlipManipulator.dylib, the minimum macOS 10.13 (x86_64) or
 #      11.0 (arm64), no local or debug symbols, and arm64 a code signature
 #   5. package_fmu: target/fmu/StickSlipManipulator.fmu (or --out FILE) from the
-#      reference model (or --model FILE)
-#   6. fmpy.validation of the FMU, when the venv has fmpy
+#      reference model (or --model FILE), and package_fmu --fmi3:
+#      target/fmu/StickSlipManipulator-fmi3.fmu (or FILE without .fmu + -fmi3.fmu)
+#   6. fmpy.validation of both FMUs, when the venv has fmpy
 #
 # Called by scripts/test.sh and scripts/main.sh.
 set -euo pipefail
@@ -75,18 +80,21 @@ source scripts/env.sh
 
 TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
+LIB3="$TARGET_DIR/release/libstick_slip_manipulator_fmi3.so"
 STRIPPED="$TARGET_DIR/fmu/stripped"
 mkdir -p "$STRIPPED"
 
-# The interface of a binary is the FMU's: the 34 fmi2 functions, nothing else.
-# check_exports FILE < exported names
+# The interface of a binary is the FMU's: the 34 fmi2 functions of FMI 2.0,
+# or the 75 fmi3 functions of FMI 3.0, nothing else.
+# check_exports FILE [fmi3] < exported names
 check_exports() {
-    local symbols count extra
+    local symbols count extra version="${2:-fmi2}" want=34
+    [ "$version" = fmi3 ] && want=75
     symbols=$(sort)
     count=$(printf '%s\n' "$symbols" | grep -c . || true)
-    extra=$(printf '%s\n' "$symbols" | grep -v '^fmi2' || true)
-    if [ "$count" -ne 34 ] || [ -n "$extra" ]; then
-        echo "build_fmu.sh: $1 exports $count symbols, expected the 34 fmi2 functions only:" >&2
+    extra=$(printf '%s\n' "$symbols" | grep -v "^$version" || true)
+    if [ "$count" -ne "$want" ] || [ -n "$extra" ]; then
+        echo "build_fmu.sh: $1 exports $count symbols, expected the $want $version functions only:" >&2
         printf '%s\n' "$symbols" >&2
         exit 1
     fi
@@ -94,38 +102,51 @@ check_exports() {
 
 size() { stat -c %s "$1"; }
 
-cargo build --release --lib --bin package_fmu
+cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib --bin package_fmu
 SO="$STRIPPED/libstick_slip_manipulator.so"
+SO3="$STRIPPED/libstick_slip_manipulator_fmi3.so"
 strip --strip-all -o "$SO" "$LIB"
+strip --strip-all -o "$SO3" "$LIB3"
 nm -D --defined-only "$SO" | awk '$2 ~ /^[TtWwDdBbRrVviu]$/ {print $3}' | check_exports "$SO"
-echo "build_fmu.sh: linux64 $(size "$LIB") bytes, $(size "$SO") stripped"
+nm -D --defined-only "$SO3" | awk '$2 ~ /^[TtWwDdBbRrVviu]$/ {print $3}' | check_exports "$SO3" fmi3
+echo "build_fmu.sh: linux64 $(size "$LIB") bytes, $(size "$SO") stripped; FMI 3.0 $(size "$SO3") stripped"
 package_args=(--lib "$SO")
+package3_args=(--lib "$SO3")
 
 if [ "$win64" -eq 1 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
     win64_start=$SECONDS
     DLL="$STRIPPED/StickSlipManipulator.dll"
+    DLL3="$STRIPPED/StickSlipManipulator-fmi3.dll"
     # Build and strip under the shared cache's lock (scripts/win64.sh): another
-    # clone's build cannot replace the DLL in between.
+    # clone's build cannot replace the DLLs in between.
     mkdir -p "$WIN64_TARGET_DIR"
     (
         flock 9
-        win64_cargo build --release --lib && cp "$WIN64_RELEASE/stick_slip_manipulator.dll" "$STRIPPED/unstripped.dll"
+        win64_cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib &&
+            cp "$WIN64_RELEASE/stick_slip_manipulator.dll" "$STRIPPED/unstripped.dll" &&
+            cp "$WIN64_RELEASE/stick_slip_manipulator_fmi3.dll" "$STRIPPED/unstripped-fmi3.dll"
     ) 9>"$WIN64_LOCK"
     x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$STRIPPED/unstripped.dll"
-    exports=$(x86_64-w64-mingw32-objdump -p "$DLL" | sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/p' | awk 'NR > 1 && /^[[:space:]]*\[/ {print $NF}')
-    printf '%s\n' "$exports" | check_exports "$DLL"
-    # Imports: Windows system DLLs only (no libgcc_s, libwinpthread, libstdc++).
-    imports=$(x86_64-w64-mingw32-objdump -p "$DLL" | awk '/DLL Name:/ {print tolower($3)}' | sort -u)
-    foreign=$(printf '%s\n' "$imports" | grep -Evx "$WIN64_SYSTEM_DLLS" || true)
-    if [ -n "$foreign" ]; then
-        echo "build_fmu.sh: $DLL imports DLLs that are not part of Windows:" >&2
-        printf '  %s\n' $foreign >&2
-        exit 1
-    fi
-    echo "build_fmu.sh: win64 $(size "$STRIPPED/unstripped.dll") bytes, $(size "$DLL") stripped; imports: $(echo $imports); cargo $((SECONDS - win64_start)) s"
+    x86_64-w64-mingw32-strip --strip-all -o "$DLL3" "$STRIPPED/unstripped-fmi3.dll"
+    for dll in "$DLL" "$DLL3"; do
+        version=fmi2
+        [ "$dll" = "$DLL3" ] && version=fmi3
+        exports=$(x86_64-w64-mingw32-objdump -p "$dll" | sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/p' | awk 'NR > 1 && /^[[:space:]]*\[/ {print $NF}')
+        printf '%s\n' "$exports" | check_exports "$dll" "$version"
+        # Imports: Windows system DLLs only (no libgcc_s, libwinpthread, libstdc++).
+        imports=$(x86_64-w64-mingw32-objdump -p "$dll" | awk '/DLL Name:/ {print tolower($3)}' | sort -u)
+        foreign=$(printf '%s\n' "$imports" | grep -Evx "$WIN64_SYSTEM_DLLS" || true)
+        if [ -n "$foreign" ]; then
+            echo "build_fmu.sh: $dll imports DLLs that are not part of Windows:" >&2
+            printf '  %s\n' $foreign >&2
+            exit 1
+        fi
+    done
+    echo "build_fmu.sh: win64 $(size "$STRIPPED/unstripped.dll") bytes, $(size "$DLL") stripped; FMI 3.0 $(size "$DLL3") stripped; imports: $(echo $imports); cargo $((SECONDS - win64_start)) s"
     package_args+=(--win64-lib "$DLL")
+    package3_args+=(--win64-lib "$DLL3")
 fi
 
 if [ "$darwin64" -eq 1 ]; then
@@ -134,59 +155,77 @@ if [ "$darwin64" -eq 1 ]; then
     darwin64_start=$SECONDS
     darwin64_build
     darwin64_seconds=$((SECONDS - darwin64_start))
-    DYLIB="$DARWIN64_DYLIB"
     objdump=$(_darwin64_llvm llvm-objdump) nm=$(_darwin64_llvm llvm-nm) lipo=$(_darwin64_llvm llvm-lipo)
-    arch="universal"
-    darwin_fail() { echo "build_fmu.sh: $DYLIB ($arch): $*" >&2; exit 1; }
-    archs=$(echo $("$lipo" -archs "$DYLIB"))
-    [ "$archs" = "x86_64 arm64" ] || darwin_fail "slices '$archs', expected 'x86_64 arm64'"
-    summary=()
-    for arch in x86_64 arm64; do
-        headers=$("$objdump" --macho --private-headers --arch="$arch" "$DYLIB")
-        # Exports: the export trie, `_fmi2…` (Mach-O names carry a leading underscore).
-        exports=$("$objdump" --macho --exports-trie --arch="$arch" "$DYLIB" | awk '/^0x/ {print $2}')
-        nonunderscore=$(printf '%s\n' "$exports" | grep -v '^_' || true)
-        [ -z "$nonunderscore" ] || darwin_fail "exports names without the leading underscore: $nonunderscore"
-        printf '%s\n' "$exports" | sed 's/^_//' | check_exports "$DYLIB ($arch)"
-        # Load commands: the dylibs loaded (any kind), the install name, the minimum macOS.
-        loads=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd != "LC_ID_DYLIB" && cmd ~ /DYLIB/ {print cmd, $2}')
-        [ "$loads" = "LC_LOAD_DYLIB $DARWIN64_SYSTEM_LIBS" ] || darwin_fail "loads '$loads', expected only $DARWIN64_SYSTEM_LIBS"
-        ! printf '%s\n' "$headers" | grep -q 'cmd LC_RPATH' || darwin_fail "has an LC_RPATH"
-        id=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd == "LC_ID_DYLIB" {print $2}')
-        [ "$id" = "$DARWIN64_INSTALL_NAME" ] || darwin_fail "install name '$id', expected $DARWIN64_INSTALL_NAME"
-        minos=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} (cmd == "LC_BUILD_VERSION" && $1 == "minos") || (cmd == "LC_VERSION_MIN_MACOSX" && $1 == "version") {print $2}')
-        want=$([ "$arch" = arm64 ] && echo 11.0 || echo 10.13)
-        [ -n "$minos" ] && [ "$(printf '%s\n%s\n' "$minos" "$want" | sort -V | tail -n1)" = "$want" ] ||
-            darwin_fail "minimum macOS '$minos', at most $want wanted"
-        # Stripped: only the exports and the undefined imports in the symbol table.
-        local_syms=$("$nm" -a --arch="$arch" "$DYLIB" | awk '$(NF-1) != "T" && $(NF-1) != "U"' | head -n5)
-        [ -z "$local_syms" ] || darwin_fail "symbols other than exports and imports (not stripped): $local_syms"
-        sig=""
-        if printf '%s\n' "$headers" | grep -q 'cmd LC_CODE_SIGNATURE'; then sig=", signed"; fi
-        [ "$arch" = x86_64 ] || [ -n "$sig" ] || darwin_fail "no LC_CODE_SIGNATURE (Apple silicon loads no unsigned code)"
-        summary+=("$arch: macOS $minos$sig")
+    for DYLIB in "$DARWIN64_DYLIB" "$DARWIN64_DYLIB3"; do
+        version=fmi2
+        [ "$DYLIB" = "$DARWIN64_DYLIB3" ] && version=fmi3
+        arch="universal"
+        darwin_fail() { echo "build_fmu.sh: $DYLIB ($arch): $*" >&2; exit 1; }
+        archs=$(echo $("$lipo" -archs "$DYLIB"))
+        [ "$archs" = "x86_64 arm64" ] || darwin_fail "slices '$archs', expected 'x86_64 arm64'"
+        summary=()
+        for arch in x86_64 arm64; do
+            headers=$("$objdump" --macho --private-headers --arch="$arch" "$DYLIB")
+            # Exports: the export trie, `_fmi2…` / `_fmi3…` (Mach-O names carry a leading underscore).
+            exports=$("$objdump" --macho --exports-trie --arch="$arch" "$DYLIB" | awk '/^0x/ {print $2}')
+            nonunderscore=$(printf '%s\n' "$exports" | grep -v '^_' || true)
+            [ -z "$nonunderscore" ] || darwin_fail "exports names without the leading underscore: $nonunderscore"
+            printf '%s\n' "$exports" | sed 's/^_//' | check_exports "$DYLIB ($arch)" "$version"
+            # Load commands: the dylibs loaded (any kind), the install name, the minimum macOS.
+            loads=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd != "LC_ID_DYLIB" && cmd ~ /DYLIB/ {print cmd, $2}')
+            [ "$loads" = "LC_LOAD_DYLIB $DARWIN64_SYSTEM_LIBS" ] || darwin_fail "loads '$loads', expected only $DARWIN64_SYSTEM_LIBS"
+            ! printf '%s\n' "$headers" | grep -q 'cmd LC_RPATH' || darwin_fail "has an LC_RPATH"
+            id=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} $1 == "name" && cmd == "LC_ID_DYLIB" {print $2}')
+            [ "$id" = "$DARWIN64_INSTALL_NAME" ] || darwin_fail "install name '$id', expected $DARWIN64_INSTALL_NAME"
+            minos=$(printf '%s\n' "$headers" | awk '$1 == "cmd" {cmd = $2} (cmd == "LC_BUILD_VERSION" && $1 == "minos") || (cmd == "LC_VERSION_MIN_MACOSX" && $1 == "version") {print $2}')
+            want=$([ "$arch" = arm64 ] && echo 11.0 || echo 10.13)
+            [ -n "$minos" ] && [ "$(printf '%s\n%s\n' "$minos" "$want" | sort -V | tail -n1)" = "$want" ] ||
+                darwin_fail "minimum macOS '$minos', at most $want wanted"
+            # Stripped: only the exports and the undefined imports in the symbol table.
+            local_syms=$("$nm" -a --arch="$arch" "$DYLIB" | awk '$(NF-1) != "T" && $(NF-1) != "U"' | head -n5)
+            [ -z "$local_syms" ] || darwin_fail "symbols other than exports and imports (not stripped): $local_syms"
+            sig=""
+            if printf '%s\n' "$headers" | grep -q 'cmd LC_CODE_SIGNATURE'; then sig=", signed"; fi
+            [ "$arch" = x86_64 ] || [ -n "$sig" ] || darwin_fail "no LC_CODE_SIGNATURE (Apple silicon loads no unsigned code)"
+            summary+=("$arch: macOS $minos$sig")
+        done
+        echo "build_fmu.sh: darwin64 $(size "$DYLIB") bytes, stripped, universal ($(printf '%s; ' "${summary[@]}" | sed 's/; $//')); imports: $DARWIN64_SYSTEM_LIBS; install name $DARWIN64_INSTALL_NAME; cargo ${darwin64_seconds} s"
     done
-    echo "build_fmu.sh: darwin64 $(size "$DYLIB") bytes, stripped, universal ($(printf '%s; ' "${summary[@]}" | sed 's/; $//')); imports: $DARWIN64_SYSTEM_LIBS; install name $DARWIN64_INSTALL_NAME; cargo ${darwin64_seconds} s"
-    package_args+=(--darwin64-lib "$DYLIB")
+    package_args+=(--darwin64-lib "$DARWIN64_DYLIB")
+    package3_args+=(--darwin64-lib "$DARWIN64_DYLIB3")
 fi
 
 "$TARGET_DIR/release/package_fmu" "${package_args[@]}" ${pass[@]+"${pass[@]}"}
 
+# The FMI 3.0 FMU of the same model beside it: <name>-fmi3.fmu.
 FMU="$TARGET_DIR/fmu/StickSlipManipulator.fmu"
+pass3=()
 for ((i = 0; i < ${#pass[@]}; i++)); do
-    [ "${pass[$i]}" = "--out" ] && FMU="${pass[$((i + 1))]}"
+    if [ "${pass[$i]}" = "--out" ]; then
+        FMU="${pass[$((i + 1))]}"
+        i=$((i + 1))
+    else
+        pass3+=("${pass[$i]}")
+    fi
 done
+FMU3="${FMU%.fmu}-fmi3.fmu"
+"$TARGET_DIR/release/package_fmu" --fmi3 "${package3_args[@]}" ${pass3[@]+"${pass3[@]}"} --out "$FMU3"
+
 if python -c "import fmpy" 2>/dev/null; then
-    python - "$FMU" <<'PY'
+    python - "$FMU" "$FMU3" <<'PY'
 import sys
 from fmpy.validation import validate_fmu
-problems = validate_fmu(sys.argv[1])
-if problems:
-    print("build_fmu.sh: fmpy.validation found problems in", sys.argv[1], file=sys.stderr)
-    for p in problems:
-        print("  " + p, file=sys.stderr)
-    sys.exit(1)
-print("build_fmu.sh: fmpy.validation: no problems in", sys.argv[1])
+failed = False
+for fmu in sys.argv[1:]:
+    problems = validate_fmu(fmu)
+    if problems:
+        print("build_fmu.sh: fmpy.validation found problems in", fmu, file=sys.stderr)
+        for p in problems:
+            print("  " + p, file=sys.stderr)
+        failed = True
+    else:
+        print("build_fmu.sh: fmpy.validation: no problems in", fmu)
+sys.exit(1 if failed else 0)
 PY
 else
     echo "build_fmu.sh: fmpy not importable; validation skipped" >&2

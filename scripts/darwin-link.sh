@@ -9,8 +9,9 @@
 # Why not `zig cc` as linker too: zig's Mach-O linker ignores
 # `-exported_symbols_list` (every Rust symbol, some 2,200, stays exported),
 # which ld64.lld honours. What the link does beyond rustc's arguments:
-#   * the export list rustc writes is cut to the `_fmi2` functions: rustc lists
-#     every `#[no_mangle]` function of every crate, so fmi-sys's `callback_log`
+#   * the export list rustc writes is cut to the `_fmi2` functions (the FMI 3.0
+#     library, an output named *fmi3*: the `_fmi3` ones): rustc lists every
+#     `#[no_mangle]` function of every crate, so fmi-sys's `callback_log`
 #     would be a 35th export (mingw-link.sh does the same for win64);
 #   * `-install_name @rpath/StickSlipManipulator.dylib`, not the build path;
 #   * `-platform_version macos MIN <sdk>`: the minimum macOS of the
@@ -51,6 +52,15 @@ for a in "$@"; do
         *) flat+=("$a") ;;
     esac
 done
+# The FMI version whose functions the library exports: the FMI 3.0 library
+# (crate fmi3/, libstick_slip_manipulator_fmi3.dylib) links the FMI 2.0
+# crate as an rlib, whose fmi2 functions rustc would list too.
+version=fmi2
+for ((i = 0; i + 1 < ${#flat[@]}; i++)); do
+    if [ "${flat[$i]}" = -o ]; then
+        case "$(basename "${flat[$((i + 1))]}")" in *fmi3*) version=fmi3 ;; esac
+    fi
+done
 i=0
 while [ "$i" -lt "${#flat[@]}" ]; do
     p="${flat[$i]}"
@@ -59,8 +69,8 @@ while [ "$i" -lt "${#flat[@]}" ]; do
         --exclude-libs=*) ;;
         -exported_symbols_list)
             i=$((i + 1)); list="${flat[$i]}"
-            cut="$list.fmi2"
-            grep -E '^[[:space:]]*_fmi2' "$list" >"$cut" || true
+            cut="$list.$version"
+            grep -E "^[[:space:]]*_$version" "$list" >"$cut" || true
             args+=(-exported_symbols_list "$cut"); exports=1 ;;
         *) args+=("$p") ;;
     esac

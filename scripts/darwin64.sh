@@ -27,6 +27,7 @@
 #   darwin64_cargo SUBCOMMAND ARGS...  /usr/bin/cargo for both Apple targets
 #                                      at once (niced), in a subshell
 #   darwin64_build                     both slices, merged into $DARWIN64_DYLIB
+#                                      (and the FMI 3.0 library's into $DARWIN64_DYLIB3)
 
 # shellcheck source=scripts/cross-wrapper.sh
 source "$STICKSLIP_ROOT/scripts/cross-wrapper.sh"
@@ -37,6 +38,8 @@ DARWIN64_CARGO_DIR="$STICKSLIP_CACHE_DIR/cross"   # shared with win64, see darwi
 DARWIN64_LOCK="$DARWIN64_CARGO_DIR.lock"          # = WIN64_LOCK
 DARWIN64_ZIG_VENV="${STICKSLIP_ZIG_VENV:-$DARWIN64_CACHE_DIR/zig-venv}"
 DARWIN64_DYLIB="$DARWIN64_TARGET_DIR/StickSlipManipulator.dylib"
+# The FMI 3.0 library (crate fmi3/), universal too (package_fmu --fmi3 splits it).
+DARWIN64_DYLIB3="$DARWIN64_TARGET_DIR/StickSlipManipulator-fmi3.dylib"
 DARWIN64_INSTALL_NAME=@rpath/StickSlipManipulator.dylib
 # The only library the dylib may load: every macOS has it (in the dyld shared cache).
 DARWIN64_SYSTEM_LIBS=/usr/lib/libSystem.B.dylib
@@ -152,17 +155,20 @@ darwin64_cargo() (
 # linker output is already stripped and (arm64) signed; lipo copies the
 # slices unchanged, so the signature stays valid.
 darwin64_build() {
-    local triple lipo slices=()
+    local triple lipo slices=() slices3=()
     lipo=$(_darwin64_llvm llvm-lipo) || return 1
     for triple in "${DARWIN64_TRIPLES[@]}"; do
         slices+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator.dylib")
+        slices3+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator_fmi3.dylib")
     done
     mkdir -p "$DARWIN64_TARGET_DIR" "$DARWIN64_CACHE_DIR"
-    rm -f "$DARWIN64_DYLIB"
+    rm -f "$DARWIN64_DYLIB" "$DARWIN64_DYLIB3"
     # Build and merge under the shared cache's lock: another clone's build
-    # cannot replace the slices in between.
+    # cannot replace the slices in between. Both FMI versions' libraries.
     (
         flock 9
-        darwin64_cargo build --release --lib && "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB"
+        darwin64_cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib &&
+            "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB" &&
+            "$lipo" -create "${slices3[@]}" -output "$DARWIN64_DYLIB3"
     ) 9>"$DARWIN64_LOCK"
 }

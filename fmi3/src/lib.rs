@@ -13,16 +13,22 @@
 #![allow(non_snake_case, clippy::missing_safety_doc, clippy::too_many_arguments)]
 
 use fmi_sys::fmi3::*;
+use std::ffi::c_char;
 use stick_slip_manipulator::fmi3::api;
 
 /// The names of the exported functions (the library's whole symbol table).
-pub const EXPORTED_FUNCTIONS: [&str; 65] = [
+pub const EXPORTED_FUNCTIONS: [&str; 75] = [
+    "fmi3GetVersion",
     "fmi3SetDebugLogging",
     "fmi3InstantiateModelExchange",
     "fmi3InstantiateCoSimulation",
     "fmi3InstantiateScheduledExecution",
     "fmi3FreeInstance",
     "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3EnterEventMode",
+    "fmi3Terminate",
+    "fmi3Reset",
     "fmi3GetFloat32",
     "fmi3GetFloat64",
     "fmi3GetInt8",
@@ -61,6 +67,8 @@ pub const EXPORTED_FUNCTIONS: [&str; 65] = [
     "fmi3DeserializeFMUState",
     "fmi3GetDirectionalDerivative",
     "fmi3GetAdjointDerivative",
+    "fmi3EnterConfigurationMode",
+    "fmi3ExitConfigurationMode",
     "fmi3GetIntervalDecimal",
     "fmi3GetIntervalFraction",
     "fmi3GetShiftDecimal",
@@ -69,7 +77,9 @@ pub const EXPORTED_FUNCTIONS: [&str; 65] = [
     "fmi3SetIntervalFraction",
     "fmi3SetShiftDecimal",
     "fmi3SetShiftFraction",
+    "fmi3EvaluateDiscreteStates",
     "fmi3UpdateDiscreteStates",
+    "fmi3EnterContinuousTimeMode",
     "fmi3CompletedIntegratorStep",
     "fmi3SetTime",
     "fmi3SetContinuousStates",
@@ -79,6 +89,7 @@ pub const EXPORTED_FUNCTIONS: [&str; 65] = [
     "fmi3GetNominalsOfContinuousStates",
     "fmi3GetNumberOfEventIndicators",
     "fmi3GetNumberOfContinuousStates",
+    "fmi3EnterStepMode",
     "fmi3GetOutputDerivatives",
     "fmi3DoStep",
     "fmi3ActivateModelPartition",
@@ -86,12 +97,17 @@ pub const EXPORTED_FUNCTIONS: [&str; 65] = [
 
 // ---- compile-time check of every signature against fmi-sys -----------------
 
+const _: fmi3GetVersionTYPE = Some(fmi3GetVersion);
 const _: fmi3SetDebugLoggingTYPE = Some(fmi3SetDebugLogging);
 const _: fmi3InstantiateModelExchangeTYPE = Some(fmi3InstantiateModelExchange);
 const _: fmi3InstantiateCoSimulationTYPE = Some(fmi3InstantiateCoSimulation);
 const _: fmi3InstantiateScheduledExecutionTYPE = Some(fmi3InstantiateScheduledExecution);
 const _: fmi3FreeInstanceTYPE = Some(fmi3FreeInstance);
 const _: fmi3EnterInitializationModeTYPE = Some(fmi3EnterInitializationMode);
+const _: fmi3ExitInitializationModeTYPE = Some(fmi3ExitInitializationMode);
+const _: fmi3EnterEventModeTYPE = Some(fmi3EnterEventMode);
+const _: fmi3TerminateTYPE = Some(fmi3Terminate);
+const _: fmi3ResetTYPE = Some(fmi3Reset);
 const _: fmi3GetFloat32TYPE = Some(fmi3GetFloat32);
 const _: fmi3GetFloat64TYPE = Some(fmi3GetFloat64);
 const _: fmi3GetInt8TYPE = Some(fmi3GetInt8);
@@ -130,6 +146,8 @@ const _: fmi3SerializeFMUStateTYPE = Some(fmi3SerializeFMUState);
 const _: fmi3DeserializeFMUStateTYPE = Some(fmi3DeserializeFMUState);
 const _: fmi3GetDirectionalDerivativeTYPE = Some(fmi3GetDirectionalDerivative);
 const _: fmi3GetAdjointDerivativeTYPE = Some(fmi3GetAdjointDerivative);
+const _: fmi3EnterConfigurationModeTYPE = Some(fmi3EnterConfigurationMode);
+const _: fmi3ExitConfigurationModeTYPE = Some(fmi3ExitConfigurationMode);
 const _: fmi3GetIntervalDecimalTYPE = Some(fmi3GetIntervalDecimal);
 const _: fmi3GetIntervalFractionTYPE = Some(fmi3GetIntervalFraction);
 const _: fmi3GetShiftDecimalTYPE = Some(fmi3GetShiftDecimal);
@@ -138,7 +156,9 @@ const _: fmi3SetIntervalDecimalTYPE = Some(fmi3SetIntervalDecimal);
 const _: fmi3SetIntervalFractionTYPE = Some(fmi3SetIntervalFraction);
 const _: fmi3SetShiftDecimalTYPE = Some(fmi3SetShiftDecimal);
 const _: fmi3SetShiftFractionTYPE = Some(fmi3SetShiftFraction);
+const _: fmi3EvaluateDiscreteStatesTYPE = Some(fmi3EvaluateDiscreteStates);
 const _: fmi3UpdateDiscreteStatesTYPE = Some(fmi3UpdateDiscreteStates);
+const _: fmi3EnterContinuousTimeModeTYPE = Some(fmi3EnterContinuousTimeMode);
 const _: fmi3CompletedIntegratorStepTYPE = Some(fmi3CompletedIntegratorStep);
 const _: fmi3SetTimeTYPE = Some(fmi3SetTime);
 const _: fmi3SetContinuousStatesTYPE = Some(fmi3SetContinuousStates);
@@ -148,11 +168,17 @@ const _: fmi3GetContinuousStatesTYPE = Some(fmi3GetContinuousStates);
 const _: fmi3GetNominalsOfContinuousStatesTYPE = Some(fmi3GetNominalsOfContinuousStates);
 const _: fmi3GetNumberOfEventIndicatorsTYPE = Some(fmi3GetNumberOfEventIndicators);
 const _: fmi3GetNumberOfContinuousStatesTYPE = Some(fmi3GetNumberOfContinuousStates);
+const _: fmi3EnterStepModeTYPE = Some(fmi3EnterStepMode);
 const _: fmi3GetOutputDerivativesTYPE = Some(fmi3GetOutputDerivatives);
 const _: fmi3DoStepTYPE = Some(fmi3DoStep);
 const _: fmi3ActivateModelPartitionTYPE = Some(fmi3ActivateModelPartition);
 
 // ---- the exports ---------------------------------------------------------------
+
+#[no_mangle]
+pub extern "C" fn fmi3GetVersion() -> *const c_char {
+    api::fmi3GetVersion()
+}
 
 #[no_mangle]
 pub unsafe extern "C" fn fmi3SetDebugLogging(
@@ -266,6 +292,26 @@ pub unsafe extern "C" fn fmi3EnterInitializationMode(
     unsafe {
         api::fmi3EnterInitializationMode(instance, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
     }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3ExitInitializationMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3ExitInitializationMode(instance) }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3EnterEventMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3EnterEventMode(instance) }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3Terminate(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3Terminate(instance) }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3Reset(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3Reset(instance) }
 }
 
 #[no_mangle]
@@ -707,6 +753,16 @@ pub unsafe extern "C" fn fmi3GetAdjointDerivative(
 }
 
 #[no_mangle]
+pub unsafe extern "C" fn fmi3EnterConfigurationMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3EnterConfigurationMode(instance) }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3ExitConfigurationMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3ExitConfigurationMode(instance) }
+}
+
+#[no_mangle]
 pub unsafe extern "C" fn fmi3GetIntervalDecimal(
     instance: fmi3Instance,
     valueReferences: *const fmi3ValueReference,
@@ -795,6 +851,11 @@ pub unsafe extern "C" fn fmi3SetShiftFraction(
 }
 
 #[no_mangle]
+pub unsafe extern "C" fn fmi3EvaluateDiscreteStates(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3EvaluateDiscreteStates(instance) }
+}
+
+#[no_mangle]
 pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
     instance: fmi3Instance,
     discreteStatesNeedUpdate: *mut fmi3Boolean,
@@ -815,6 +876,11 @@ pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
             nextEventTime,
         )
     }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3EnterContinuousTimeMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3EnterContinuousTimeMode(instance) }
 }
 
 #[no_mangle]
@@ -898,6 +964,11 @@ pub unsafe extern "C" fn fmi3GetNumberOfContinuousStates(
     nContinuousStates: *mut usize,
 ) -> fmi3Status {
     unsafe { api::fmi3GetNumberOfContinuousStates(instance, nContinuousStates) }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi3EnterStepMode(instance: fmi3Instance) -> fmi3Status {
+    unsafe { api::fmi3EnterStepMode(instance) }
 }
 
 #[no_mangle]
