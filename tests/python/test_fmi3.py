@@ -1,0 +1,343 @@
+"""The FMI 3.0 FMU (StickSlipManipulator-fmi3.fmu) run by fmpy's FMI 3.0 co-simulation API:
+
+* without early return and intermediate update it gives the FMI 2.0 FMU's outputs bit for bit;
+* with early return it returns at every located stick-slip event, at the FMI 2.0 run's event
+  instants, and the master's run from there goes on to the same stiction counts;
+* the intermediate-update callback sees the outputs at every sub-step (without changing them),
+  and the drive inputs it sets there are used: a step in q̈* inside a communication step is
+  followed to 1e-8 rad instead of 2e-4 rad;
+* FMU states round-trip bit for bit, serialized too; wrong call orders are refused by name.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+
+from fmi3_slave import Slave3, require_fmu3
+from helpers import INTERVAL, RUN_TIME, Slave, input_vector
+
+# "t = 0.0201 s: joint 1 stuck -> slipping (+)" (category logEvents), FMI 2.0 and 3.0 alike
+EVENT = re.compile(r"t = (\S+) s: (joint \d+|rotor of joint \d+) (.+?) -> (.+)$")
+
+
+@pytest.fixture(scope="module")
+def fmu3():
+    return require_fmu3()
+
+
+def fmi2_reference(steps: int, logging_on: bool = False):
+    """The FMI 2.0 FMU over the reference motion: (outputs by stem, one row per step; event list; n_stick)."""
+    s = Slave("fmi2", logging_on=logging_on)
+    s.initialize()
+    rows = s.run_reference(0, steps)
+    names = s.output_names()
+    by_stem: dict[str, list[int]] = {}
+    for i, name in enumerate(names):
+        by_stem.setdefault(name.split("[")[0], []).append(i)
+    outputs = {stem: rows[:, idx] for stem, idx in by_stem.items()}
+    events = [m.groups() for r in s.log.records if (m := EVENT.search(str(r[-1])))]
+    s.free()
+    return outputs, events
+
+
+def events_of(log) -> list[tuple]:
+    return [m.groups() for (_, category, message) in log if category == "logEvents" and (m := EVENT.search(message))]
+
+
+def test_equal_to_fmi2_bit_for_bit(fmu3):
+    """Inputs at the communication points only, no early return: every output of every step is
+    the FMI 2.0 FMU's, to the bit (the arrays hold the FMI 2.0 scalars in their order)."""
+    steps = 400
+    expected, _ = fmi2_reference(steps)
+    with Slave3() as s:
+        s.initialize()
+        got = {name: [] for name in s.output_names()}
+        for k in range(steps):
+            s.set_inputs(input_vector(k * INTERVAL))
+            event, terminate, early, last = s.do_step(k * INTERVAL, INTERVAL)
+            assert (event, terminate, early) == (False, False, False)
+            assert last == pytest.approx((k + 1) * INTERVAL, abs=1e-15)
+            for name in got:
+                got[name].append(s.get(name))
+    assert sorted(got) == sorted(expected), "the FMI 3.0 outputs are the FMI 2.0 outputs' stems"
+    for name, rows in got.items():
+        rows = np.array(rows).reshape(steps, -1)
+        assert np.array_equal(rows, expected[name]), f"`{name}` differs from the FMI 2.0 FMU's"
+
+
+def run_early_return(event_mode_used: bool):
+    """The reference run with early return: inputs set at the communication points t_k only
+    (between an early return and t_k+1 the FMU holds them); returns (early returns as
+    (time, eventHandlingNeeded), events logged, final n_stick, outputs at every t_k)."""
+    n = round(RUN_TIME / INTERVAL)
+    returns, at_grid = [], []
+    with Slave3(early_return_allowed=True, event_mode_used=event_mode_used, logging_on=True) as s:
+        s.initialize()
+        if event_mode_used:  # FMI 3.0: Event Mode after initialization when the master uses it
+            s.fmu.updateDiscreteStates()
+            s.fmu.enterStepMode()
+        t, k = 0.0, 0
+        while k < n:
+            if t == k * INTERVAL:
+                s.set_inputs(input_vector(t))
+            event, terminate, early, last = s.do_step(t, (k + 1) * INTERVAL - t)
+            assert not terminate
+            if early:
+                assert k * INTERVAL < last < (k + 1) * INTERVAL
+                assert s.get("time")[0] == last
+                returns.append((last, event))
+                if event:
+                    s.fmu.enterEventMode()
+                    need, terminate, *_ = s.fmu.updateDiscreteStates()
+                    assert not need and not terminate
+                    s.fmu.enterStepMode()
+                t = last
+            else:
+                assert not event
+                k += 1
+                t = k * INTERVAL
+                at_grid.append(s.get("q"))
+        return returns, events_of(s.log), s.get("n_stick"), np.array(at_grid)
+
+
+def test_early_return_at_every_event(fmu3):
+    """Every located stick→slip / slip→stick of the reference run ends a step early, at the
+    instant it was located; the events are the FMI 2.0 run's, in the same order, at the same
+    instants to 1e-9 s (measured: 8.4e-11 s); the stiction counts end the same."""
+    n = round(RUN_TIME / INTERVAL)
+    expected_q, fmi2_events = fmi2_reference(n, logging_on=True)
+    returns, events, n_stick, q_grid = run_early_return(event_mode_used=True)
+    assert len(fmi2_events) >= 10, "the reference run has stick-slip events"
+    assert [e[1:] for e in events] == [e[1:] for e in fmi2_events]
+    for (t3, *_), (t2, *_) in zip(events, fmi2_events, strict=True):
+        assert abs(float(t3) - float(t2)) < 1e-9
+    event_times = sorted({float(e[0]) for e in events})
+    grid = [t for t in event_times if abs(t / INTERVAL - round(t / INTERVAL)) < 1e-9]
+    # one early return per event instant strictly inside a step, at that instant, eventHandlingNeeded set
+    assert [t for t, _ in returns] == [t for t in event_times if t not in grid]
+    assert all(event for _, event in returns)
+    n2 = expected_q["n_stick"][-1]
+    assert np.array_equal(n_stick, n2), "the stiction phases counted at the end are the FMI 2.0 run's"
+    # and the master's run goes on correctly: the link positions at the communication points
+    # agree with the FMI 2.0 run's (to 1e-9 rad; the sub-step grid differs after a return)
+    assert np.max(np.abs(q_grid - expected_q["q"])) < 1e-9
+
+
+def test_early_return_without_event_mode(fmu3):
+    """Without eventModeUsed the FMU still returns at the events, with eventHandlingNeeded false."""
+    returns, _events, _, _ = run_early_return(event_mode_used=False)
+    assert returns and not any(event for _, event in returns)
+
+
+def test_intermediate_update_sees_every_sub_step_and_changes_nothing(fmu3):
+    """The callback, called at the end of every sub-step inside a step, reads the outputs there
+    (fmi3GetFloat64 from inside fmi3DoStep); the step's results stay the FMI 2.0 FMU's bit for
+    bit. Calls that Intermediate Update Mode does not allow are refused."""
+    steps = 100
+    expected, _ = fmi2_reference(steps)
+    seen, refused = [], []
+    holder: dict = {}
+
+    def callback(env, t, set_requested, get_allowed, step_finished, can_return_early, early_requested, early_time):
+        s = holder["s"]
+        seen.append((t, s.fmu.getFloat64([s.vr("q")], 4)[1], s.fmu.getFloat64([s.vr("time")], 1)[0]))
+        try:
+            s.fmu.doStep(t, 1e-3)
+        except FMICallException:
+            refused.append(t)
+
+    with Slave3(intermediate_update=callback) as s:
+        holder["s"] = s
+        s.initialize()
+        rows = []
+        for k in range(steps):
+            s.set_inputs(input_vector(k * INTERVAL))
+            assert not s.do_step(k * INTERVAL, INTERVAL)[2]
+            rows.append(s.get("q"))
+        assert np.array_equal(np.array(rows), expected["q"])
+        assert any("not allowed in Intermediate Update Mode" in m for _, _, m in s.log)
+    times = [t for t, _, _ in seen]
+    assert len(times) > 10 * steps, "many sub-steps per communication step"
+    assert all(a < b for a, b in itertools.pairwise(times)), "sub-step ends in order"
+    assert all(t == tm for t, _, tm in seen), "`time` in the callback is the sub-step's end"
+    assert all(abs(t / INTERVAL - round(t / INTERVAL)) > 1e-12 for t in times), "only inside the steps"
+    assert len(refused) == len(seen)
+
+
+# A step of q̈* inside a communication step: joint 1's drive accelerates at +A, then at -A
+# from T_SWITCH on; the other inputs stay at their values at t = 0.
+A, T_SWITCH, END = 20.0, 0.0153, 0.05
+
+
+def switched_inputs(t: float) -> list[float]:
+    x = np.array(input_vector(0.0)).reshape(3, 4)
+    x[1:] = 0.0
+    if t < T_SWITCH:
+        q, qd, qdd = 0.5 * A * t * t, A * t, A
+    else:
+        u = t - T_SWITCH
+        q, qd, qdd = 0.5 * A * T_SWITCH**2 + A * T_SWITCH * u - 0.5 * A * u * u, A * T_SWITCH - A * u, -A
+    x[0, 0], x[1, 0], x[2, 0] = q, qd, qdd
+    return [float(v) for v in x.reshape(-1)]
+
+
+def q1_fmi2(h: float) -> dict:
+    with Slave("switch") as s:
+        s.initialize(inputs=switched_inputs(0.0))
+        out = {}
+        for k in range(round(END / h)):
+            s.set_inputs(switched_inputs(k * h))
+            s.fmu.doStep(k * h, h)
+            out[round((k + 1) * h, 9)] = s.get("q[1]")
+        return out
+
+
+def q1_fmi3(h: float, feed: bool) -> dict:
+    holder: dict = {}
+
+    def callback(env, t, set_requested, get_allowed, step_finished, can_return_early, early_requested, early_time):
+        s = holder["s"]
+        if feed and set_requested:
+            s.fmu.setFloat64([s.vr("q_star"), s.vr("qd_star"), s.vr("qdd_star")], switched_inputs(t))
+
+    with Slave3(intermediate_update=callback) as s:
+        holder["s"] = s
+        s.initialize(inputs=switched_inputs(0.0))
+        out = {}
+        for k in range(round(END / h)):
+            s.set_inputs(switched_inputs(k * h))
+            s.do_step(k * h, h)
+            out[round((k + 1) * h, 9)] = s.get("q")[0]
+        return out
+
+
+def test_inputs_at_the_sub_steps(fmu3):
+    """A step of q̈* 5.3 ms into a 10 ms communication step. The truth: the FMI 2.0 FMU with
+    0.1 ms steps (T_SWITCH on its grid). With 10 ms steps the Taylor polynomial of the step's
+    start misses the switch: joint 1 is 1.8e-4 rad off (measured); the master's inputs given
+    at every sub-step through the intermediate update bring it to 1.7e-9 rad."""
+    truth = q1_fmi2(1e-4)
+    h = 1e-2
+    coarse2 = q1_fmi2(h)
+    plain3 = q1_fmi3(h, feed=False)
+    fed3 = q1_fmi3(h, feed=True)
+
+    def error(run):
+        return max(abs(run[t] - truth[t]) for t in run)
+
+    assert error(plain3) == error(coarse2), "without inputs in the callback: the FMI 2.0 result"
+    assert error(coarse2) > 1e-4
+    assert error(fed3) < 1e-8
+    assert error(coarse2) > 1e4 * error(fed3)
+
+
+def test_state_round_trip(fmu3):
+    """fmi3GetFMUState / SetFMUState and their serialized form: the steps after a restore repeat
+    bit for bit, in the same instance and in another one."""
+    with Slave3() as s:
+        s.initialize()
+        for k in range(50):
+            s.set_inputs(input_vector(k * INTERVAL))
+            s.do_step(k * INTERVAL, INTERVAL)
+        state = s.fmu.getFMUState()
+        blob = s.fmu.serializeFMUState(state)
+
+        def run():
+            rows = []
+            for k in range(50, 120):
+                s.set_inputs(input_vector(k * INTERVAL))
+                s.do_step(k * INTERVAL, INTERVAL)
+                rows.append(np.concatenate([s.get("q"), s.get("f").ravel(), s.get("n_stick")]))
+            return np.array(rows)
+
+        first = run()
+        s.fmu.setFMUState(state)
+        assert np.array_equal(run(), first)
+        s.fmu.freeFMUState(state)
+        with Slave3("other") as o:
+            o.initialize()
+            restored = o.fmu.deserializeFMUState(blob)
+            o.fmu.setFMUState(restored)
+            s2 = s
+            s = o  # run() reads `s`
+            assert np.array_equal(run(), first)
+            s = s2
+            o.fmu.freeFMUState(restored)
+        with pytest.raises(FMICallException):
+            s.fmu.deserializeFMUState(blob[:-1] + bytes([blob[-1] ^ 1]))
+        assert any("FMU state" in m or "checksum" in m for _, _, m in s.log)
+
+
+def status_of(call) -> str:
+    try:
+        call()
+    except FMICallException as e:
+        return str(e)
+    return "ok"
+
+
+def test_wrong_call_orders_and_arguments(fmu3):
+    """Each refused with fmi3Error and a message naming the call and the reason."""
+    with Slave3() as s:
+        assert "error" in status_of(lambda: s.do_step(0.0, INTERVAL))
+        assert "fmi3DoStep: illegal call sequence: not allowed in Instantiated" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.enterEventMode())
+        s.initialize()
+        assert "error" in status_of(lambda: s.fmu.enterEventMode())
+        assert "eventModeUsed = false" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.getFloat64([s.vr("q")], 3))
+        assert "nValues = 3" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.getFloat64([10_000], 1))
+        assert "unknown value reference 10000" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.getBoolean([s.vr("q")], 4))
+        assert "is a Float64 variable, not Boolean" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.setFloat64([s.vr("time")], [1.0]))
+        assert "error" in status_of(lambda: s.fmu.getInt8([s.vr("q")], 4))
+        assert "no Int8 variables" in s.log[-1][2]
+        assert s.fmu.getInt8([], 0) == []
+        assert "error" in status_of(lambda: s.do_step(0.5, INTERVAL))
+        assert "is not the FMU's time" in s.log[-1][2]
+        q_star = s.vr("q_star")
+        assert "error" in status_of(lambda: s.fmu.setFloat64([q_star], [float("nan")] * 4))
+        assert np.array_equal(s.get("q_star"), np.array(input_vector(0.0)[:4])), "a refused set changes nothing"
+        s.set_inputs(input_vector(0.0))
+        assert s.do_step(0.0, INTERVAL)[3] == INTERVAL
+        # fmpy's getOutputDerivatives sizes its result for scalars: the array call by hand
+        assert output_derivative(s, "q", 1) == list(s.get("qd"))
+        assert output_derivative(s, "q", 2) == list(s.get("qdd"))
+        assert output_derivative(s, "qd", 1) == list(s.get("qdd"))
+        assert "error" in status_of(lambda: output_derivative(s, "f", 1))
+        assert "no derivative of order 1 of `f`" in s.log[-1][2]
+
+
+def output_derivative(s: Slave3, name: str, order: int) -> list[float]:
+    """fmi3GetOutputDerivatives of one array variable."""
+    from fmpy.fmi3 import fmi3Float64, fmi3Int32, fmi3ValueReference
+
+    n = s.size(name)
+    values = (fmi3Float64 * n)()
+    s.fmu.fmi3GetOutputDerivatives(
+        s.fmu.component, (fmi3ValueReference * 1)(s.vr(name)), 1, (fmi3Int32 * 1)(order), values, n
+    )
+    return list(values)
+
+
+def test_instantiation_is_checked(fmu3):
+    from fmpy import read_model_description
+    from fmpy.fmi3 import FMU3Slave
+
+    from helpers import unzip_dir
+
+    md = read_model_description(str(fmu3))
+    unzipped = unzip_dir(str(fmu3))
+    wrong = FMU3Slave(guid="{wrong}", unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier)
+    messages = []
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        wrong.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
+    assert any("instantiationToken {wrong} does not match" in m for m in messages)
+    wrong.freeLibrary()
