@@ -1,6 +1,7 @@
 """Run the stick-slip manipulator FMU with fmpy, the way a user does.
 
-* :func:`run`: instantiate the FMU with fmpy's FMU2Slave, set parameters,
+* :func:`run`: instantiate the FMU with fmpy's FMU2Slave (an FMI 3.0 FMU, ``X-fmi3.fmu``:
+  FMU3Slave through the FMI 2.0 scalar names, :mod:`stickslip.fmi3`), set parameters,
   step it over a motion, by default the reference motion of
   :mod:`stickslip.motion`, or a motion file (docs/motion.md; inputs q*, q*', q*''
   set at every communication point) and collect every output by name;
@@ -71,8 +72,13 @@ def run(
     from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave
 
+    from .fmi3 import ScalarSlave, is_fmi3, scalar_view
+
     fmu = str(fmu)
     md = read_model_description(fmu)
+    fmi3 = is_fmi3(md)
+    if fmi3:  # the FMI 3.0 FMU through the FMI 2.0 FMU's scalar names (stickslip.fmi3)
+        md = scalar_view(md)
     if motion is not None:
         inputs = load_motion_for(motion, md)
     if end is None:
@@ -82,9 +88,12 @@ def run(
     real_out = [v for v in outputs if v.type == "Real"]
     bool_out = [v for v in outputs if v.type == "Boolean"]
     unzipdir = extract(fmu, tempfile.mkdtemp(prefix="stickslip_"))
-    slave = FMU2Slave(
-        guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="run"
-    )
+    if fmi3:
+        slave = ScalarSlave(md, unzipDirectory=unzipdir, instanceName="run")
+    else:
+        slave = FMU2Slave(
+            guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="run"
+        )
     real_vrs = [v.valueReference for v in real_out]
     bool_vrs = [v.valueReference for v in bool_out]
     rows = []
@@ -96,7 +105,10 @@ def run(
 
     running = None
     try:
-        slave.instantiate(callbacks=log.callbacks)
+        if fmi3:
+            slave.instantiate(log=log)
+        else:
+            slave.instantiate(callbacks=log.callbacks)
         initialize(slave, md, parameters or {}, in_vrs, inputs, interval)
         record(0.0)
         if progress:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -341,3 +342,37 @@ def test_instantiation_is_checked(fmu3):
         wrong.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
     assert any("instantiationToken {wrong} does not match" in m for m in messages)
     wrong.freeLibrary()
+
+
+def test_scalar_view_names_every_fmi2_scalar(fmu3):
+    """stickslip.fmi3.scalar_view: the FMI 3.0 arrays as the FMI 2.0 FMU's scalars, the same
+    names in the same order (arrays over some joints by their `(elements: …)` note)."""
+    from fmpy import read_model_description
+
+    from helpers import fmu_path
+    from stickslip.fmi3 import scalar_view
+
+    fmi2 = [(v.name, v.causality, v.type) for v in read_model_description(str(fmu_path())).modelVariables]
+    view = scalar_view(read_model_description(str(fmu3)))
+    assert [(v.name, v.causality, v.type) for v in view.modelVariables] == fmi2
+
+
+def test_stickslip_simulate_runs_the_fmi3_fmu(fmu3, tmp_path):
+    """`stickslip simulate --fmu X-fmi3.fmu` takes the FMI 2.0 names in --set and writes the FMI 2.0
+    FMU's CSV byte for byte."""
+    import subprocess
+    import sys
+
+    from helpers import fmu_path
+
+    stickslip = str(Path(sys.executable).with_name("stickslip"))
+    sets = ["--set", "mu_k[3]=0.25", "--set", "mu_s[3]=0.3", "--set", "k[1]=8e5", "--set", "h_max=2e-4"]
+    out = {}
+    for name, fmu in (("fmi2", fmu_path()), ("fmi3", fmu3)):
+        out[name] = tmp_path / f"{name}.csv"
+        cmd = [stickslip, "simulate", "--fmu", str(fmu), "--end", "0.3", "--out", str(out[name]), *sets]
+        subprocess.run(cmd, check=True, capture_output=True)
+    assert out["fmi2"].read_bytes() == out["fmi3"].read_bytes()
+    bad = [stickslip, "simulate", "--fmu", str(fmu3), "--end", "0.01", "--out", str(tmp_path / "x.csv")]
+    r = subprocess.run([*bad, "--set", "mu_k[3]=-1"], capture_output=True, text=True)
+    assert r.returncode == 2 and "mu_k" in r.stderr
