@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import re
 from pathlib import Path
 
@@ -376,3 +377,41 @@ def test_stickslip_simulate_runs_the_fmi3_fmu(fmu3, tmp_path):
     bad = [stickslip, "simulate", "--fmu", str(fmu3), "--end", "0.01", "--out", str(tmp_path / "x.csv")]
     r = subprocess.run([*bad, "--set", "mu_k[3]=-1"], capture_output=True, text=True)
     assert r.returncode == 2 and "mu_k" in r.stderr
+
+
+def test_seeded_fmi3_fuzz_finds_no_crash_hang_or_silent_non_finite_output(fmu3):
+    """tests/python/fuzz_fmi3.py, 4 batches of 2000 random FMI 3.0 calls (each batch in a child
+    process): no crash, no hang, no fmi3Fatal, no fmi3OK step with a non-finite output, no early
+    return outside its step. Longer runs: `python tests/python/fuzz_fmi3.py --batches 50 --calls 20000`."""
+    from fuzz_fmi3 import fuzz
+
+    result = fuzz(str(fmu3), seed=11, batches=4, calls=2000, timeout=120, verbose=False)
+    assert result["problems"] == []
+    totals = result["totals"]
+    assert totals["ok"] > 2000 and totals["error"] > 1000, totals
+    assert totals["callbacks"] > 0 and totals["early"] > 0, "the callback and early return were exercised"
+
+
+def test_ranges_are_enforced_through_the_arrays(fmu3):
+    """Every settable Float64 array of the FMI 3.0 FMU: NaN, infinity and a value above its
+    declared max are refused with fmi3Error, and the array keeps its values; its start values
+    are accepted back."""
+    with Slave3() as s:
+        s.fmu.enterInitializationMode()
+        checked = 0
+        for v in s.md.modelVariables:
+            if v.causality not in ("parameter", "input") or v.type != "Float64":
+                continue
+            before = s.get(v.name)
+            bad = [float("nan"), float("inf")]
+            if v.max is not None and math.isfinite(float(v.max)):
+                bad.append(float(v.max) * 2 + 1)
+            for x in bad:
+                values = list(before)
+                values[-1] = x
+                assert "error" in status_of(lambda vr=v.valueReference, vals=values: s.fmu.setFloat64([vr], vals))
+                assert f"`{v.name}[" in s.log[-1][2] or f"`{v.name}`" in s.log[-1][2], s.log[-1]
+                assert np.array_equal(s.get(v.name), before), f"a refused {v.name} changed the array"
+            s.set(v.name, before)
+            checked += 1
+        assert checked >= 20
