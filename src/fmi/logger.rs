@@ -1,6 +1,6 @@
 //! Messages to the master's logger callback, filtered by log category.
 
-use super::description::LOG_CATEGORIES;
+use super::description::{in_fmi3_terms, LOG_CATEGORIES};
 use super::status::Status;
 use fmi_sys::fmi2::{fmi2CallbackLogger, fmi2ComponentEnvironment};
 use fmi_sys::fmi3::{fmi3InstanceEnvironment, fmi3LogMessageCallback};
@@ -144,7 +144,7 @@ impl Logger {
             }
             Sink::Fmi3 { callback, environment } => {
                 let Some(callback) = callback else { return };
-                let text = CString::new(message.replace('\0', " ")).unwrap_or_default();
+                let text = CString::new(in_fmi3_terms(message).replace('\0', " ")).unwrap_or_default();
                 let category = CString::new(name).unwrap_or_default();
                 // SAFETY: the master's callback, given at fmi3InstantiateCoSimulation,
                 // takes these NUL-terminated strings, which outlive the call.

@@ -12,6 +12,7 @@
 
 mod arrays;
 mod documentation;
+mod fmi3_terms;
 mod hash;
 mod joints;
 mod outputs;
@@ -22,6 +23,7 @@ mod writer3;
 
 pub use arrays::{variables3, Type3, Variable3};
 pub use documentation::{documentation_html, drive_colour_index, escape_html, DRIVE_COLOURS};
+pub use fmi3_terms::in_fmi3_terms;
 pub use hash::{fnv1a_64, Fnv1a128};
 pub(crate) use joints::joint_units;
 pub use outputs::{Arity, Output, OutputKind, OutputUnit, OUTPUTS};

@@ -20,7 +20,7 @@ use super::arrays::{split_name, variables3, Type3, Variable3};
 use super::joints::joint_label;
 use super::outputs::Arity;
 use super::variables::{guid, variables, Causality, Initial, Quantity, Type, Variability, Variable};
-use super::{DEFAULT_EXPERIMENT, LOG_CATEGORIES, MODEL_IDENTIFIER, UNITS};
+use super::{in_fmi3_terms, DEFAULT_EXPERIMENT, LOG_CATEGORIES, MODEL_IDENTIFIER, UNITS};
 use crate::model::{JointKind, Model};
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
@@ -137,6 +137,7 @@ fn write_co_simulation(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             ("maxOutputDerivativeOrder", "2"),
             ("providesIntermediateUpdate", "true"),
             ("canReturnEarlyAfterIntermediateUpdate", "true"),
+            ("mightReturnEarlyFromDoStep", "true"),
             ("hasEventMode", "true"),
         ])
         .write_empty()?;
@@ -169,7 +170,7 @@ fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     w.create_element("LogCategories").write_inner_content(|w| {
         for (name, description) in LOG_CATEGORIES {
             w.create_element("Category")
-                .with_attributes([("name", name), ("description", description)])
+                .with_attributes([("name", name), ("description", in_fmi3_terms(description).as_str())])
                 .write_empty()?;
         }
         Ok(())
@@ -354,7 +355,7 @@ fn write_variable(w: &mut Writer<Vec<u8>>, model: &Model, vars: &[Variable], v3:
     let mut a: Vec<(&str, String)> = vec![
         ("name", v3.name.clone()),
         ("valueReference", vr),
-        ("description", description),
+        ("description", in_fmi3_terms(&description)),
         ("causality", causality.into()),
         ("variability", variability.into()),
     ];
@@ -644,9 +645,12 @@ mod tests {
                 .map_or_else(|| xml[start..].find("/>").unwrap() + 2, |e| e + tag.len() + 3);
             xml[start..start + end].to_string()
         };
-        for tag in ["UnitDefinitions", "LogCategories", "DefaultExperiment"] {
+        for tag in ["UnitDefinitions", "DefaultExperiment"] {
             assert_eq!(section(&xml2, tag), section(&xml3, tag), "{tag}");
         }
+        // The log categories' descriptions in FMI 3.0's terms (fmi3Warning, ...).
+        assert_eq!(in_fmi3_terms(&section(&xml2, "LogCategories")), section(&xml3, "LogCategories"));
+        assert!(!section(&xml3, "LogCategories").contains("fmi2"));
     }
 
     #[test]
