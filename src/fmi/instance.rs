@@ -22,6 +22,10 @@ enum Value {
     Boolean(bool),
 }
 
+/// What FMI 3.0's layer runs at the end of each sub-step inside a step
+/// ([`Instance::do_step_observed`]).
+pub(crate) type AfterSubStep<'a> = dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError> + 'a;
+
 /// Relative tolerance on the communication point, × max(1, |t|).
 const TIME_TOLERANCE: f64 = 1e-9;
 
@@ -619,7 +623,7 @@ impl Instance {
         &mut self,
         t: f64,
         h: f64,
-        after: &mut dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>,
+        after: &mut AfterSubStep<'_>,
     ) -> Result<(Status, Flow), Fault> {
         self.step(t, h, Some(after))
     }
@@ -649,12 +653,7 @@ impl Instance {
         &self.sim
     }
 
-    fn step(
-        &mut self,
-        t: f64,
-        h: f64,
-        after: Option<&mut dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>>,
-    ) -> Result<(Status, Flow), Fault> {
+    fn step(&mut self, t: f64, h: f64, after: Option<&mut AfterSubStep<'_>>) -> Result<(Status, Flow), Fault> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Fault::error(format!("communicationStepSize = {h} s: must be positive and finite")));
         }

@@ -326,7 +326,7 @@ pub unsafe extern "C" fn fmi3SetFloat64(
     }
 }
 
-fn frame_scalars(frame: &super::boundary::Frame) -> std::sync::Arc<[crate::fmi::description::Variable]> {
+fn frame_scalars(frame: &super::frame::Frame) -> std::sync::Arc<[crate::fmi::description::Variable]> {
     frame.scalars()
 }
 

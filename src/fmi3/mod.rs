@@ -17,6 +17,8 @@
 
 pub mod api;
 mod boundary;
+mod frame;
 mod instance;
 #[cfg(test)]
 mod tests;
+mod values;

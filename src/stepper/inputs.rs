@@ -1,5 +1,7 @@
 //! Drive inputs and their Taylor polynomial across a communication interval.
 
+use crate::error::StepError;
+use crate::model::Range;
 pub use crate::model::{INPUT_RANGES, MOTOR_TORQUE_RANGES};
 
 /// Drive inputs at the start of a communication interval. For a flexible
@@ -71,4 +73,32 @@ impl InputPolynomial {
         let a = self.qdd[i];
         (self.q[i] + tau * (self.qd[i] + 0.5 * tau * a), self.qd[i] + tau * a, a)
     }
+}
+
+/// `p`'s value and first two derivatives at `t`, per joint, into `out`.
+pub(super) fn held(p: &InputPolynomial, t: f64, [x, xd, xdd]: [&mut [f64]; 3]) {
+    for i in 0..p.q.len() {
+        (x[i], xd[i], xdd[i]) = p.eval(i, t);
+    }
+}
+
+/// Checks three input vectors (a value and its two derivatives) against
+/// their names and ranges: n values each, finite, inside the range.
+pub(super) fn check_input_values(
+    n: usize,
+    ranges: [(&'static str, Range); 3],
+    values: [&[f64]; 3],
+) -> Result<(), StepError> {
+    for ((field, range), values) in ranges.into_iter().zip(values) {
+        if values.len() != n {
+            return Err(StepError::InputLength { field, expected: n, got: values.len() });
+        }
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
+        }
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
+            return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
+        }
+    }
+    Ok(())
 }

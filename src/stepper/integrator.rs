@@ -61,6 +61,9 @@ pub(crate) struct Integrator {
     pub(crate) instant: u64,
     pub(crate) transitions: Vec<Transition>,
     pub(crate) transitions_dropped: usize,
+    /// The last sub-step ended at a located event: the decisions of the
+    /// current instant are of the current time.
+    pub(crate) located_now: bool,
 }
 
 /// A transition is located to this fraction of the sub-step.
@@ -143,6 +146,7 @@ impl Integrator {
             instant: 1,
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
             transitions_dropped: 0,
+            located_now: false,
             model,
         }
     }
@@ -208,8 +212,10 @@ impl Integrator {
             steps.next_h = proposal.clamp(settings.h_min, settings.h_max);
         }
         let Some(event) = self.earliest_event() else {
+            self.located_now = false;
             return self.accept().map(|()| self.transition_count() != changes);
         };
+        self.located_now = true;
         let (mut lo, mut hi) = (0.0, 1.0);
         let (mut g_lo, mut g_hi) = (self.event_value(event, &self.start), self.event_value(event, &self.state));
         let mut solved_at_hi = true;
@@ -258,6 +264,21 @@ impl Integrator {
             _ => {}
         }
         self.settle_phases().map(|()| true)
+    }
+
+    /// The joints decided at the current instant stay decided through the
+    /// next `instants` instants: those of the same physical time that new
+    /// inputs (FMI 3.0's intermediate update, the step after an early return)
+    /// begin. A joint that just broke away with q̇ = 0 would otherwise stick
+    /// again for a sliver when the inputs move by their rounding.
+    pub(crate) fn carry_decisions(&mut self, instants: u64) {
+        if !self.located_now {
+            return;
+        }
+        let now = self.instant;
+        for d in self.decided.iter_mut().filter(|d| **d >= now) {
+            *d = (*d).max(now + instants);
+        }
     }
 
     /// Phase changes so far, kept or only counted.
@@ -466,7 +487,9 @@ impl Integrator {
         let (decided, phase, margin, qd, qdd) =
             (&self.decided[..n], &st.phase[..n], &st.margin[..n], &st.qd[..n], &st.qdd[..n]);
         for i in 0..n {
-            if decided[i] == self.instant {
+            // `>=`: a decision carried to later instants of the same time
+            // (`carry_decisions`).
+            if decided[i] >= self.instant {
                 continue;
             }
             let pending = match phase[i] {

@@ -5,13 +5,14 @@ mod inputs;
 mod integrator;
 mod isa;
 mod newmark;
+mod reported;
 mod simulator;
 mod state;
 mod substep;
 
 pub use inputs::{DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 pub use integrator::{Flow, Transition, TRANSITION_LOG_CAPACITY};
-pub(crate) use substep::SubStep;
 pub use isa::InstructionSet;
 pub use simulator::{InitialState, RotorStart, Simulator};
 pub use state::{Energy, Phase, State, StepStatistics};
+pub(crate) use substep::SubStep;

@@ -1,20 +1,19 @@
 //! The simulator: a model, its workspace and its state, advanced over
 //! communication intervals by the iterative Newmark stepper.
 
-use super::inputs::{DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use super::inputs::{check_input_values, held, DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use super::integrator::{AfterSubStep, Flow, Integrator, NoObserver, Transition};
 use super::isa::InstructionSet;
+use super::reported::{update_energies, update_reported};
 use super::state::{Phase, State};
-use super::substep::{held, Observer, SubStep};
-use crate::algorithms::energy::{kinetic_energy, potential_energy};
-use crate::algorithms::kinematics::{end_point, forget_joint_transforms, forward_kinematics, update_joint_transforms};
-use crate::algorithms::rnea::{joint_reactions, rnea};
+use super::substep::{Observer, SubStep};
+use crate::algorithms::kinematics::{forget_joint_transforms, update_joint_transforms};
+use crate::algorithms::rnea::rnea;
 use crate::data::Data;
 use crate::error::{ModelError, StepError};
-use crate::forces::drive::spring_energy;
 use crate::forces::friction::holds_statically;
 use crate::forces::rotor::rotor_holds_statically;
-use crate::model::{Drive, Model, Range};
+use crate::model::{Drive, Model};
 
 /// Where the rotors of motor drives start (see [`Simulator::set_rotor_start`]).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -425,8 +424,12 @@ impl Simulator {
         let mut observer = Observer { after, scratch: self.scratch.clone(), report: None };
         let result = self.advance_inner(inputs, interval, &mut observer);
         let result = result.and_then(|flow| self.checked(check).map(|()| flow));
-        if result.is_err() {
-            self.core.state.copy_from(&self.saved);
+        match result {
+            // The next interval starts at this instant (its start and its
+            // first sub-step's): the phases decided here stand through both.
+            Ok(Flow::Stop) => self.core.carry_decisions(2),
+            Ok(Flow::Continue) => {}
+            Err(_) => self.core.state.copy_from(&self.saved),
         }
         result
     }
@@ -475,58 +478,6 @@ impl Simulator {
     }
 }
 
-/// Recomputes the reported quantities of `core`'s state (see
-/// [`Simulator::update_reported`]); `scratch` is a joint vector.
-fn update_reported(core: &mut Integrator, scratch: &mut [f64]) {
-    report(&core.model, &mut core.data, &mut core.state, core.solver.rotors(), scratch);
-}
-
-/// The reported quantities of `st` (energies, joint reactions, end points),
-/// with `data` evaluated at `st`.
-pub(super) fn report(model: &Model, data: &mut Data, st: &mut State, rotors: &[usize], scratch: &mut [f64]) {
-    update_energies_of(model, data, st, rotors);
-    joint_reactions(model, data);
-    // Reported in the frame the user described each link in (URDF: the
-    // child link frame); the identity for Denavit–Hartenberg joints.
-    for (i, joint) in model.joints.iter().enumerate() {
-        st.reaction_force[i] = joint.reported_axes * data.reaction_force[i];
-        st.reaction_moment[i] = joint.reported_axes * data.reaction_moment[i];
-    }
-    st.end_point = end_point(model, data);
-    // q̂: q* for flexible joints, the prescribed q for rigid ones (= q*).
-    scratch.copy_from_slice(&st.q_star);
-    forward_kinematics(model, data, scratch);
-    // The next interval starts from the library's sines of its own q.
-    forget_joint_transforms(data);
-    st.end_point_rigid = end_point(model, data);
-}
-
-/// Kinetic, gravity and spring energy of `core`'s state; leaves the
-/// frame-0 kinematics of the current coordinates in the workspace.
-pub(super) fn update_energies(core: &mut Integrator) {
-    update_energies_of(&core.model, &mut core.data, &mut core.state, core.solver.rotors());
-}
-
-fn update_energies_of(model: &Model, data: &mut Data, st: &mut State, rotors: &[usize]) {
-    let n = model.nq();
-    forward_kinematics(model, data, &st.q[..n]);
-    st.energy.kinetic = kinetic_energy(model, data, &st.qd[..n]);
-    st.energy.potential = potential_energy(model, data);
-    st.energy.spring = model
-        .joints
-        .iter()
-        .enumerate()
-        .map(|(i, j)| j.drive.spring().map_or(0.0, |s| spring_energy(s.stiffness, s.clearance, st.q_star[i], st.q[i])))
-        .sum();
-    st.energy.rotor_kinetic = rotors
-        .iter()
-        .enumerate()
-        .filter_map(|(r, &j)| {
-            model.joints[j].drive.rotor().map(|rotor| 0.5 * rotor.inertia * st.qd[n + r] * st.qd[n + r])
-        })
-        .sum();
-}
-
 /// The phase a spring-driven joint or a rotor starts in at velocity `qd`:
 /// slipping in its direction if it moves, else stuck if its friction
 /// `holds` it, else slipping (its direction decided by the first evaluation).
@@ -538,25 +489,4 @@ fn phase_at_start(qd: f64, holds: bool) -> Phase {
     } else {
         Phase::Slipping(1)
     }
-}
-
-/// Checks three input vectors (a value and its two derivatives) against
-/// their names and ranges: n values each, finite, inside the range.
-pub(super) fn check_input_values(
-    n: usize,
-    ranges: [(&'static str, Range); 3],
-    values: [&[f64]; 3],
-) -> Result<(), StepError> {
-    for ((field, range), values) in ranges.into_iter().zip(values) {
-        if values.len() != n {
-            return Err(StepError::InputLength { field, expected: n, got: values.len() });
-        }
-        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(StepError::NonFiniteInput { field, joint: i + 1, value: *v });
-        }
-        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !range.contains(**v)) {
-            return Err(StepError::InputOutOfRange { field, joint: i + 1, value: *v, range: range.to_string() });
-        }
-    }
-    Ok(())
 }

@@ -8,9 +8,9 @@
 //! copy of the state and workspace, since the workspace's cached joint
 //! transforms are part of how the next sub-step is computed.
 
-use super::inputs::{DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use super::inputs::{check_input_values, held, DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use super::integrator::{AfterSubStep, Flow, Integrator};
-use super::simulator::{check_input_values, report, update_energies};
+use super::reported::{report, update_energies};
 use super::state::State;
 use crate::data::Data;
 use crate::error::StepError;
@@ -72,18 +72,15 @@ impl SubStep<'_> {
         self.core.torques.set_values(t, torques);
         let before = self.core.state.energy.total();
         self.core.evaluate()?;
-        self.core.instant += 1;
+        // The same instant as the sub-step's end: a joint whose phase was
+        // decided there (a breakaway just located) keeps it, also at the
+        // next sub-step's start; new inputs there must not make it stick
+        // again for a sliver.
         self.core.settle_phases()?;
+        self.core.carry_decisions(1);
         update_energies(self.core);
         self.core.state.energy.drive_work += self.core.state.energy.total() - before;
         Ok(())
-    }
-}
-
-/// `p`'s value and first two derivatives at `t`, per joint, into `out`.
-pub(super) fn held(p: &super::inputs::InputPolynomial, t: f64, [x, xd, xdd]: [&mut [f64]; 3]) {
-    for i in 0..p.q.len() {
-        (x[i], xd[i], xdd[i]) = p.eval(i, t);
     }
 }
 

@@ -37,7 +37,7 @@ pub fn in_fmi3_terms(message: &str) -> String {
 }
 
 #[cfg(test)]
-mod fmi3_terms {
+mod tests {
     use super::in_fmi3_terms;
 
     #[test]
