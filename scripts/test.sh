@@ -161,12 +161,16 @@ fi
 # motion on Linux against binaries/linux64 (a), then, compiled for
 # x86_64-pc-windows-gnu and run under wine, against binaries/win64 of the same
 # .fmu (b), then restores on Linux the state win64 serialized (c); see
-# tests/win64/Cargo.toml. Also the main crate's unit tests, compiled for Windows,
+# tests/win64/Cargo.toml. The same for the FMI 3.0 FMU: its x86_64-linux binary
+# runs the reference motion and an early-return run (fmi3-a), its
+# x86_64-windows DLL under wine must return early at the same instants and
+# agree (fmi3-b). Also the main crate's unit tests, compiled for Windows,
 # under wine. Missing wine or a missing win64 binary fail the stage.
 if [ -d tests/win64 ] && [ "$QUICK" -eq 0 ]; then
     # shellcheck source=scripts/win64.sh
     source scripts/win64.sh
     export STICKSLIP_FMU="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator.fmu"
+    export STICKSLIP_FMU3="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator-fmi3.fmu"
     export STICKSLIP_XPLAT_DIR="$LOGDIR/xplat"
     win64_tests=(test --release --manifest-path tests/win64/Cargo.toml --no-fail-fast)
     linux_target=(--target-dir "${CARGO_TARGET_DIR:-$ROOT/target}")   # not tests/win64/target
@@ -177,17 +181,20 @@ if [ -d tests/win64 ] && [ "$QUICK" -eq 0 ]; then
     # make the two builds overwrite each other's artifacts each run).
     export CARGO_PROFILE_RELEASE_DEBUG=1
     run_libtest_stage "win64-a-linux64" "$LOGDIR/win64-a.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64
+    run_libtest_stage "win64-fmi3-a-linux64" "$LOGDIR/win64-fmi3-a.log" -- \
+        cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_fmi3
     banner "win64: the test-only wine prefix"
     if win64_wine_prefix; then
         run_libtest_stage "win64-b-wine" "$LOGDIR/win64-b.log" -- win64_cargo "${win64_tests[@]}" --test win64
+        run_libtest_stage "win64-fmi3-b-wine" "$LOGDIR/win64-fmi3-b.log" -- win64_cargo "${win64_tests[@]}" --test win64_fmi3
         # The engine's own unit tests on Windows: the C boundary's catch_unwind
         # (a panic leaves the instance in the error state), the Windows resource
         # URI through the real Windows code path, the FMI layer's call checks.
         run_libtest_stage "win64-lib-wine" "$LOGDIR/win64-lib.log" -- win64_cargo test --release --lib --no-fail-fast
     else
-        SUMMARY+=("win64-b-wine: FAILED (no wine prefix)")
-        FAILED_STAGES+=("win64-b-wine")
-        TOT_FAIL=$((TOT_FAIL + 1))
+        SUMMARY+=("win64-b-wine: FAILED (no wine prefix)" "win64-fmi3-b-wine: FAILED (no wine prefix)")
+        FAILED_STAGES+=("win64-b-wine" "win64-fmi3-b-wine")
+        TOT_FAIL=$((TOT_FAIL + 2))
     fi
     run_libtest_stage "win64-c-linux64" "$LOGDIR/win64-c.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_after_win64
     unset CARGO_PROFILE_RELEASE_DEBUG
