@@ -79,6 +79,11 @@ source scripts/env.sh
 [ $((SECONDS - env_start)) -lt 2 ] || echo "build_fmu.sh: scripts/env.sh $((SECONDS - env_start)) s"
 
 TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
+# One build at a time per target dir: the stripped libraries and the darwin64
+# dylibs have fixed paths there (parallel tests build their own model's FMUs).
+mkdir -p "$TARGET_DIR"
+exec 7>"$TARGET_DIR/.build_fmu.lock"
+flock 7
 LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
 LIB3="$TARGET_DIR/release/libstick_slip_manipulator_fmi3.so"
 STRIPPED="$TARGET_DIR/fmu/stripped"

@@ -205,7 +205,12 @@ if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -nam
     banner "pytest tests/python $*"
     pytest_start=$SECONDS
     set +e
+    # Two worker processes (pytest-xdist), a test module on one worker
+    # (its module-scoped fixtures once); STICKSLIP_PYTEST_WORKERS=0 runs them
+    # in this process.
+    workers="${STICKSLIP_PYTEST_WORKERS:-2}"
     pytest_args=(-ra --durations=15)
+    [ "$workers" != 0 ] && pytest_args+=(-n "$workers" --dist loadfile)
     [ "$QUICK" -eq 1 ] && pytest_args+=(-m "not full")
     python -m pytest tests/python "${pytest_args[@]}" --junitxml="$LOGDIR/pytest.xml" "$@" 2>&1 | tee "$LOGDIR/pytest.log"
     rc=${PIPESTATUS[0]}

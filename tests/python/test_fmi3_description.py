@@ -100,7 +100,8 @@ def run_package_fmu(*args) -> subprocess.CompletedProcess:
 @functools.cache
 def fmu(key: str, fmi3: bool = True) -> Path:
     """The FMI 3.0 (or, for comparison, FMI 2.0) FMU of model ``key``, packed on first use."""
-    out = scratch_dir() / f"{key}{'-fmi3' if fmi3 else ''}.fmu"
+    # a name of its own: urdf_fmus/motor_fmus build `<key>.fmu` into the same scratch directory
+    out = scratch_dir() / f"packed-{key}{'-fmi3' if fmi3 else ''}.fmu"
     args = ["--fmi3"] if fmi3 else []
     if MODELS[key] is not None:
         args += ["--model", MODELS[key]]
