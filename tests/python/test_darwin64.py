@@ -1,14 +1,22 @@
-"""The FMU's darwin64 binary, checked statically (nothing here can run macOS code).
+"""The FMUs' macOS binaries, checked statically (nothing here can run macOS code).
 
-``binaries/darwin64/StickSlipManipulator.dylib`` of the shipped ``.fmu`` is read
-by a small Mach-O reader written for this test (no Apple or LLVM tool needed;
-``scripts/build_fmu.sh`` checks the same properties with the LLVM tools, so two
-independent readers agree). Checked, per slice of the universal file:
+``binaries/darwin64/StickSlipManipulator.dylib`` of the shipped FMI 2.0 ``.fmu``
+(a universal file) and ``binaries/x86_64-darwin/StickSlipManipulator.dylib`` and
+``binaries/aarch64-darwin/StickSlipManipulator.dylib`` of the FMI 3.0 FMU
+(``StickSlipManipulator-fmi3.fmu``, ``$STICKSLIP_FMU3``: one thin file per FMI 3.0
+platform tuple) are read by a small Mach-O reader written for this test (no Apple
+or LLVM tool needed; ``scripts/build_fmu.sh`` checks the same properties with the
+LLVM tools, so two independent readers agree). Checked, per slice of the
+universal file and per thin FMI 3.0 file alike (the tests named ``[fmi2]`` and
+``[fmi3]``):
 
-* format: a fat (universal) file with exactly an ``x86_64`` and an ``arm64``
-  slice, each a 64-bit little-endian ``MH_DYLIB``;
+* format: FMI 2.0 a fat (universal) file with exactly an ``x86_64`` and an
+  ``arm64`` slice; FMI 3.0 two thin files, ``x86_64-darwin`` an ``x86_64`` and
+  ``aarch64-darwin`` an ``arm64`` image; each a 64-bit little-endian ``MH_DYLIB``;
 * exports: the export trie (what dyld resolves against) names exactly the 34
-  FMI 2.0 co-simulation functions, ``_fmi2…``, nothing else;
+  FMI 2.0 co-simulation functions, ``_fmi2…``, respectively exactly the 75
+  functions of the FMI 3.0 API, ``_fmi3…`` (``EXPORTED_FUNCTIONS`` of
+  ``fmi3/src/lib.rs``), nothing else;
 * imports: ``/usr/lib/libSystem.B.dylib`` only (no weak, lazy, re-exported or
   upward libraries), and no ``LC_RPATH``;
 * install name (``LC_ID_DYLIB``): ``@rpath/StickSlipManipulator.dylib``, never
@@ -24,17 +32,20 @@ independent readers agree). Checked, per slice of the universal file:
 ``scripts/build_fmu.sh`` builds darwin64 by default (``scripts/test.sh`` and so
 CI with it). Without a darwin64 binary in the FMU (``STICKSLIP_DARWIN64=0``, or
 ``--platforms`` without darwin64) the tests skip with the reason, except in CI
-(``CI=true``), where they fail: CI must not pass without having checked it.
+(``CI=true``), where they fail: CI must not pass without having checked it. The
+same holds for the FMI 3.0 FMU and its two darwin binaries.
 """
 
 import hashlib
 import os
+import re
 import struct
 import zipfile
 
 import pytest
 
-from helpers import fmu_path
+from fmi3_slave import fmu3_path
+from helpers import ROOT, fmu_path
 
 # CI's full run only (scripts/test.sh --quick leaves it out): the darwin64 binary (not built by --quick)
 pytestmark = pytest.mark.full
@@ -53,6 +64,33 @@ GetDirectionalDerivative SetRealInputDerivatives GetRealOutputDerivatives DoStep
 CancelStep GetStatus GetRealStatus GetIntegerStatus GetBooleanStatus GetStringStatus
 """.split()
 EXPECTED_EXPORTS = {"_fmi2" + f for f in FMI2_CS_FUNCTIONS}
+
+# FMI 3.0: every function of the API (fmi3Functions.h), for all three interface types;
+# the FMU provides co-simulation and answers the others with fmi3Error.
+FMI3_DYLIBS = {
+    "x86_64": "binaries/x86_64-darwin/StickSlipManipulator.dylib",
+    "arm64": "binaries/aarch64-darwin/StickSlipManipulator.dylib",
+}
+FMI3_FUNCTIONS = """
+GetVersion SetDebugLogging InstantiateModelExchange InstantiateCoSimulation InstantiateScheduledExecution
+FreeInstance EnterInitializationMode ExitInitializationMode EnterEventMode Terminate Reset
+GetFloat32 GetFloat64 GetInt8 GetUInt8 GetInt16 GetUInt16 GetInt32 GetUInt32 GetInt64 GetUInt64
+GetBoolean GetString GetBinary GetClock
+SetFloat32 SetFloat64 SetInt8 SetUInt8 SetInt16 SetUInt16 SetInt32 SetUInt32 SetInt64 SetUInt64
+SetBoolean SetString SetBinary SetClock
+GetNumberOfVariableDependencies GetVariableDependencies
+GetFMUState SetFMUState FreeFMUState SerializedFMUStateSize SerializeFMUState DeserializeFMUState
+GetDirectionalDerivative GetAdjointDerivative EnterConfigurationMode ExitConfigurationMode
+GetIntervalDecimal GetIntervalFraction GetShiftDecimal GetShiftFraction
+SetIntervalDecimal SetIntervalFraction SetShiftDecimal SetShiftFraction
+EvaluateDiscreteStates UpdateDiscreteStates
+EnterContinuousTimeMode CompletedIntegratorStep SetTime SetContinuousStates GetContinuousStateDerivatives
+GetEventIndicators GetContinuousStates GetNominalsOfContinuousStates GetNumberOfEventIndicators
+GetNumberOfContinuousStates
+EnterStepMode GetOutputDerivatives DoStep
+ActivateModelPartition
+""".split()
+EXPECTED_FMI3_EXPORTS = {"_fmi3" + f for f in FMI3_FUNCTIONS}
 
 CPU_X86_64 = 0x01000007
 CPU_ARM64 = 0x0100000C
@@ -259,6 +297,7 @@ def missing(reason: str):
 
 @pytest.fixture(scope="module")
 def darwin64():
+    """The FMI 2.0 FMU's universal dylib: its slices by architecture."""
     path = fmu_path()
     if not path.is_file():
         missing(f"{path} does not exist")
@@ -269,10 +308,44 @@ def darwin64():
     return {ARCH_NAMES.get(cpu, hex(cpu)): s for cpu, s in slices(blob)}
 
 
+@pytest.fixture(scope="module")
+def darwin64_fmi3():
+    """The FMI 3.0 FMU's two thin dylibs, by the architecture their folder names."""
+    path = fmu3_path()
+    if not path.is_file():
+        missing(f"{path} does not exist")
+    out = {}
+    with zipfile.ZipFile(path) as zf:
+        for arch, member in FMI3_DYLIBS.items():
+            if member not in zf.namelist():
+                missing(f"{path.name} has no {member}")
+            blob = zf.read(member)
+            (magic,) = struct.unpack_from(">I", blob, 0)
+            assert magic != 0xCAFEBABE, f"{member} is a universal file, not a thin {arch} image"
+            out[arch] = Slice(blob)
+    return out
+
+
+@pytest.fixture(scope="module", params=["fmi2", "fmi3"])
+def library(request):
+    """(images by architecture, the exports they must have) of each FMU's macOS binaries."""
+    if request.param == "fmi2":
+        return request.getfixturevalue("darwin64"), EXPECTED_EXPORTS
+    return request.getfixturevalue("darwin64_fmi3"), EXPECTED_FMI3_EXPORTS
+
+
 def test_universal_file_with_an_x86_64_and_an_arm64_dylib(darwin64):
     assert sorted(darwin64) == ["arm64", "x86_64"]
     for arch, s in darwin64.items():
         assert s.arch == arch, "the fat header's CPU type differs from the slice's"
+        assert s.filetype == MH_DYLIB, f"{arch}: file type {s.filetype}, not MH_DYLIB"
+
+
+def test_fmi3_thin_dylibs_one_architecture_each(darwin64_fmi3):
+    """x86_64-darwin holds an x86_64 image, aarch64-darwin an arm64 one (thin files)."""
+    assert sorted(darwin64_fmi3) == ["arm64", "x86_64"]
+    for arch, s in darwin64_fmi3.items():
+        assert s.arch == arch, f"{FMI3_DYLIBS[arch]}: CPU type {s.arch}"
         assert s.filetype == MH_DYLIB, f"{arch}: file type {s.filetype}, not MH_DYLIB"
 
 
@@ -286,14 +359,36 @@ def test_exports_exactly_the_34_fmi2_functions(darwin64):
         )
 
 
-def test_imports_only_libsystem(darwin64):
-    for arch, s in darwin64.items():
+def test_fmi3_function_list_is_the_librarys():
+    """The 75 names above are fmi3/src/lib.rs's EXPORTED_FUNCTIONS (what build_fmu.sh checks)."""
+    source = (ROOT / "fmi3" / "src" / "lib.rs").read_text()
+    block = re.search(r"EXPORTED_FUNCTIONS: \[&str; (\d+)\] = \[(.*?)\];", source, re.S)
+    assert block, "EXPORTED_FUNCTIONS not found in fmi3/src/lib.rs"
+    names = re.findall(r'"(fmi3\w+)"', block.group(2))
+    assert len(names) == int(block.group(1)) == 75
+    assert {"_" + n for n in names} == EXPECTED_FMI3_EXPORTS
+
+
+def test_exports_exactly_the_75_fmi3_functions(darwin64_fmi3):
+    assert len(EXPECTED_FMI3_EXPORTS) == 75
+    for arch, s in darwin64_fmi3.items():
+        exports = s.exports()
+        assert exports == EXPECTED_FMI3_EXPORTS, (
+            f"{arch}: {len(exports)} exports; extra {sorted(exports - EXPECTED_FMI3_EXPORTS)[:20]}, "
+            f"missing {sorted(EXPECTED_FMI3_EXPORTS - exports)}"
+        )
+
+
+def test_imports_only_libsystem(library):
+    images, _ = library
+    for arch, s in images.items():
         assert s.imports() == [(LC_LOAD_DYLIB, LIBSYSTEM)], f"{arch}: {s.imports()}"
         assert not s.of(LC_RPATH), f"{arch}: has LC_RPATH"
 
 
-def test_install_name_is_relative(darwin64):
-    for arch, s in darwin64.items():
+def test_install_name_is_relative(library):
+    images, _ = library
+    for arch, s in images.items():
         assert s.install_names() == [INSTALL_NAME], f"{arch}: {s.install_names()}"
         for cmd, off, size in s.commands:
             text = s.data[off : off + size]
@@ -301,8 +396,9 @@ def test_install_name_is_relative(darwin64):
                 assert build_path not in text, f"{arch}: load command {cmd:#x} names {text!r}"
 
 
-def test_minimum_macos(darwin64):
-    for arch, s in darwin64.items():
+def test_minimum_macos(library):
+    images, _ = library
+    for arch, s in images.items():
         versions = s.min_os()
         assert len(versions) == 1, f"{arch}: {versions}"
         platform, minos = versions[0]
@@ -324,26 +420,28 @@ def check_signature(arch, s, cd):
         assert digest(chunk).digest() == expected, f"{arch}: page {i} does not match its hash"
 
 
-def test_arm64_slice_is_ad_hoc_signed_and_the_hashes_match(darwin64):
-    arm = darwin64["arm64"]
+def test_arm64_slice_is_ad_hoc_signed_and_the_hashes_match(library):
+    images, _ = library
+    arm = images["arm64"]
     cd = arm.code_directory()
     assert cd is not None, "arm64: no LC_CODE_SIGNATURE (Apple silicon refuses unsigned arm64 code)"
     assert cd["flags"] & CS_ADHOC, f"arm64: CodeDirectory flags {cd['flags']:#x}, not ad hoc"
     assert cd["ident"], "arm64: empty signing identifier"
     check_signature("arm64", arm, cd)
-    x86 = darwin64["x86_64"]
+    x86 = images["x86_64"]
     cd = x86.code_directory()
     if cd is not None:
         check_signature("x86_64", x86, cd)
 
 
-def test_stripped(darwin64):
+def test_stripped(library):
+    images, expected_exports = library
     N_STAB, N_EXT, N_TYPE, N_UNDF = 0xE0, 0x01, 0x0E, 0x0
-    for arch, s in darwin64.items():
+    for arch, s in images.items():
         symbols = s.symbols()
         stabs = [name for name, t in symbols if t & N_STAB]
         local = [name for name, t in symbols if not t & N_STAB and not t & N_EXT]
         assert not stabs, f"{arch}: {len(stabs)} debug (STAB) symbols, e.g. {stabs[:5]}"
         assert not local, f"{arch}: {len(local)} local symbols, e.g. {local[:5]}"
         defined = {name for name, t in symbols if t & N_EXT and (t & N_TYPE) != N_UNDF}
-        assert defined <= EXPECTED_EXPORTS, f"{arch}: global symbols {sorted(defined - EXPECTED_EXPORTS)[:10]}"
+        assert defined <= expected_exports, f"{arch}: global symbols {sorted(defined - expected_exports)[:10]}"
