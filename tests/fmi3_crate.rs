@@ -24,9 +24,11 @@
 //!
 //! Which FMU: `$STICKSLIP_FMU3` if set (it must exist), otherwise
 //! `target/fmu/StickSlipManipulator-fmi3.fmu` (built by `bash
-//! scripts/build_fmu.sh`). Without it the tests print why and return (skip):
-//! `cargo test` does not build the FMI 3.0 library (the workspace crate
-//! `fmi3/`), so it cannot pack one of its own as tests/fmi_crate.rs does.
+//! scripts/build_fmu.sh`). Without it, or if it is older than the engine
+//! library of this build (then it may hold an older engine), the tests print
+//! why and return (skip): `cargo test` does not build the FMI 3.0 library
+//! (the workspace crate `fmi3/`), so it cannot pack one of its own as
+//! tests/fmi_crate.rs does.
 
 use std::ffi::{c_char, CStr, CString};
 use std::io::{Cursor, Read, Write};
@@ -61,14 +63,27 @@ fn fmu3_file() -> Option<PathBuf> {
             return Ok(p);
         }
         let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fmu/StickSlipManipulator-fmi3.fmu");
-        if built.is_file() {
-            Ok(built)
-        } else {
-            Err(format!(
+        if !built.is_file() {
+            return Err(format!(
                 "no FMI 3.0 FMU to test: {} does not exist; build it with `bash scripts/build_fmu.sh` \
                  (or set $STICKSLIP_FMU3)",
                 built.display()
-            ))
+            ));
+        }
+        // The engine's cdylib of this build (as in tests/fmi_crate.rs) is relinked whenever
+        // the library changes: an FMU older than it may hold an older engine, which would
+        // differ from the direct run for that reason alone.
+        let packager = PathBuf::from(env!("CARGO_BIN_EXE_package_fmu"));
+        let lib = packager.parent().expect("target/<profile>").join("deps/libstick_slip_manipulator.so");
+        let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+        match (modified(&built), modified(&lib)) {
+            (Some(fmu), Some(engine)) if fmu < engine => Err(format!(
+                "{} is older than this build's library {}: it may hold an older engine; rebuild it with \
+                 `bash scripts/build_fmu.sh` (or set $STICKSLIP_FMU3)",
+                built.display(),
+                lib.display()
+            )),
+            _ => Ok(built),
         }
     });
     match found {
