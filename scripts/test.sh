@@ -4,8 +4,8 @@
 #   bash scripts/test.sh [--quick] [pytest args...]
 #
 #   0. formatters and linters, each a stage that fails the run:
-#      cargo fmt --check, cargo clippy --all-targets -- -D warnings (the main
-#      crate and tests/win64), ruff check, ruff format --check
+#      cargo fmt --all --check, cargo clippy --workspace --all-targets -- -D warnings (the
+#      workspace: the engine crate and fmi3/; and tests/win64), ruff check, ruff format --check
 #   1. cargo test --release --all-targets --no-fail-fast  (release: physics tests are heavy)
 #   2. cargo test --release --doc           (doc tests; only if there is a lib target)
 #   3. FMU packaging hook: scripts/build_fmu.sh, if it exists: linux64, win64
@@ -118,9 +118,9 @@ run_check_stage() {
 # ---- 0. formatters and linters -------------------------------------------------
 # rustfmt.toml and pyproject.toml's [tool.ruff] hold the choices; clippy's
 # warnings are errors. tests/win64 is a package of its own (its own manifest).
-run_check_stage "rustfmt" -- cargo fmt --check
+run_check_stage "rustfmt" -- cargo fmt --all --check
 run_check_stage "rustfmt-win64" -- cargo fmt --manifest-path tests/win64/Cargo.toml --check
-run_check_stage "clippy" -- cargo clippy --release --all-targets --quiet -- -D warnings
+run_check_stage "clippy" -- cargo clippy --release --workspace --all-targets --quiet -- -D warnings
 if [ "$QUICK" -eq 0 ]; then
     run_check_stage "clippy-win64" -- cargo clippy --release --quiet --manifest-path tests/win64/Cargo.toml \
         --target-dir "${CARGO_TARGET_DIR:-$ROOT/target}" --all-targets -- -D warnings
