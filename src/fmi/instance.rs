@@ -26,6 +26,9 @@ enum Value {
 /// ([`Instance::do_step_observed`]).
 pub(crate) type AfterSubStep<'a> = dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError> + 'a;
 
+/// The result of [`finite_outputs`].
+type FiniteCheck = Result<(), (String, f64)>;
+
 /// Relative tolerance on the communication point, × max(1, |t|).
 const TIME_TOLERANCE: f64 = 1e-9;
 
@@ -613,7 +616,10 @@ impl Instance {
 
     /// fmi2DoStep.
     pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Outcome {
-        self.step(t, h, None).map(|(status, _)| status)
+        let advance = |sim: &mut Simulator, inputs: &DriveInputs<'_>, check: &dyn Fn(&State) -> FiniteCheck| {
+            sim.advance_checked(inputs, h, check).map(|()| Flow::Continue)
+        };
+        self.step(t, h, advance).map(|(status, _)| status)
     }
 
     /// fmi3DoStep with an observer of the sub-steps (FMI 3.0's intermediate
@@ -625,7 +631,10 @@ impl Instance {
         h: f64,
         after: &mut AfterSubStep<'_>,
     ) -> Result<(Status, Flow), Fault> {
-        self.step(t, h, Some(after))
+        let advance = |sim: &mut Simulator, inputs: &DriveInputs<'_>, check: &dyn Fn(&State) -> FiniteCheck| {
+            sim.advance_observed(inputs, h, check, |s| after(s))
+        };
+        self.step(t, h, advance)
     }
 
     /// The drive inputs and motor torques become the values the engine holds
@@ -653,7 +662,15 @@ impl Instance {
         &self.sim
     }
 
-    fn step(&mut self, t: f64, h: f64, after: Option<&mut AfterSubStep<'_>>) -> Result<(Status, Flow), Fault> {
+    /// The checks and results of a step around `advance` (the FMI 2.0 step,
+    /// or FMI 3.0's observed one: generic, so that the FMI 2.0 library holds
+    /// only the stepping loop without an observer).
+    fn step(
+        &mut self,
+        t: f64,
+        h: f64,
+        advance: impl FnOnce(&mut Simulator, &DriveInputs<'_>, &dyn Fn(&State) -> FiniteCheck) -> Result<Flow, StepError>,
+    ) -> Result<(Status, Flow), Fault> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Fault::error(format!("communicationStepSize = {h} s: must be positive and finite")));
         }
@@ -671,10 +688,7 @@ impl Instance {
         self.sim.set_motor_torques(&motor_torques(&self.torques)).map_err(|e| Fault::error(e.to_string()))?;
         let variables = &self.variables;
         let check = |s: &State| finite_outputs(variables, s);
-        let result = match after {
-            None => self.sim.advance_checked(&drive_inputs(&self.inputs), h, check).map(|()| Flow::Continue),
-            Some(after) => self.sim.advance_observed(&drive_inputs(&self.inputs), h, check, |s| after(s)),
-        };
+        let result = advance(&mut self.sim, &drive_inputs(&self.inputs), &check);
         if result.is_err() {
             // Phase changes of a step that was not taken did not happen.
             self.sim.clear_transitions();
