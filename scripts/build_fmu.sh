@@ -107,7 +107,14 @@ check_exports() {
 
 size() { stat -c %s "$1"; }
 
-cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib --bin package_fmu
+# STICKSLIP_FMU_ALL_TARGETS=1 (scripts/test.sh, after `cargo test --all-targets`): built
+# with every target, so that cargo resolves the dependencies' features as for the tests
+# (the dev-dependencies add some) and reuses that build of the engine; a plain build of
+# the libraries would compile it again with other features, and the engine's cdylib,
+# one file for both, would make each build invalidate the other.
+linux_targets=(--lib --bin package_fmu)
+[ "${STICKSLIP_FMU_ALL_TARGETS:-0}" = 1 ] && linux_targets=(--all-targets)
+cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 "${linux_targets[@]}"
 SO="$STRIPPED/libstick_slip_manipulator.so"
 SO3="$STRIPPED/libstick_slip_manipulator_fmi3.so"
 strip --strip-all -o "$SO" "$LIB"

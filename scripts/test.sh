@@ -145,6 +145,9 @@ fi
 # under CI=true).
 build_fmu_args=()
 [ "$QUICK" -eq 1 ] && build_fmu_args=(--platforms linux64)
+# The FMUs' libraries (and the tests' own cargo builds) with every target, as stage 1
+# built them: one build of the engine, not two (scripts/build_fmu.sh).
+export STICKSLIP_FMU_ALL_TARGETS=1
 if [ -f scripts/build_fmu.sh ]; then
     banner "build-fmu: bash scripts/build_fmu.sh ${build_fmu_args[*]} (STICKSLIP_DARWIN64=${STICKSLIP_DARWIN64:-1})"
     fmu_start=$SECONDS

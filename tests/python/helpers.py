@@ -95,6 +95,13 @@ def input_signals(end: float = RUN_TIME, interval: float = INTERVAL) -> np.ndarr
 # direct run of the engine
 
 
+def cargo_targets(*targets: str) -> list:
+    """The cargo target selection for a test's own `cargo build --release`: `targets`, or
+    `--all-targets` under scripts/test.sh (STICKSLIP_FMU_ALL_TARGETS=1), which resolves the
+    dependencies' features as `cargo test` did and so reuses its build of the engine."""
+    return ["--all-targets"] if os.environ.get("STICKSLIP_FMU_ALL_TARGETS") == "1" else list(targets)
+
+
 def _cargo() -> str:
     cargo = shutil.which("cargo") or str(Path.home() / ".cargo" / "bin" / "cargo")
     return cargo

@@ -25,7 +25,7 @@ import fmpy
 import pytest
 from fmpy.validation import validate_fmu
 
-from helpers import ROOT, scratch_dir
+from helpers import ROOT, cargo_targets, scratch_dir
 
 RELEASE = ROOT / "target" / "release"
 MODELS = {
@@ -65,7 +65,7 @@ def universal(slices: dict) -> bytes:
 def package_fmu() -> Path:
     """The release ``package_fmu`` binary, built on first use."""
     cargo = shutil.which("cargo") or str(Path.home() / ".cargo" / "bin" / "cargo")
-    cmd = [cargo, "build", "--release", "--quiet", "--bin", "package_fmu"]
+    cmd = [cargo, "build", "--release", "--quiet", *cargo_targets("--bin", "package_fmu")]
     r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     assert r.returncode == 0, f"{' '.join(cmd)} failed:\n{r.stdout[-4000:]}"
     return RELEASE / "package_fmu"

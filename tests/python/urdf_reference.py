@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from helpers import cargo_targets
+
 ROOT = Path(__file__).resolve().parents[2]
 TARGET = Path(os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target")))
 RELEASE = TARGET / "release"
@@ -217,7 +219,8 @@ def _cargo() -> str:
 def engine_binaries() -> Path:
     """target/release with ``inverse_dynamics``, ``package_fmu`` and the cdylib, built (or
     brought up to date: cargo does nothing when they are) by ``cargo build --release``."""
-    cmd = [_cargo(), "build", "--release", "--quiet", "--lib", "--bin", "inverse_dynamics", "--bin", "package_fmu"]
+    targets = cargo_targets("--lib", "--bin", "inverse_dynamics", "--bin", "package_fmu")
+    cmd = [_cargo(), "build", "--release", "--quiet", *targets]
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stderr[-4000:]}")
