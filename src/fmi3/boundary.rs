@@ -12,6 +12,7 @@
 
 use super::frame::{Frame, Reentry};
 use super::instance::{Instance3, Modes};
+use crate::fmi::boundary::panic_message;
 use crate::fmi::logger::{Category, Logger};
 use crate::fmi::status::{Fault, Outcome, Status};
 use fmi_sys::fmi3::{fmi3Instance, fmi3Status};
@@ -88,14 +89,6 @@ pub(crate) unsafe fn free_instance(c: fmi3Instance) {
         std::ptr::addr_of_mut!((*h).magic).write(0);
         drop(Box::from_raw(h));
     }
-}
-
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
-    payload
-        .downcast_ref::<&str>()
-        .copied()
-        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
-        .unwrap_or("panic")
 }
 
 fn to_fmi3(status: Status) -> fmi3Status {

@@ -381,6 +381,16 @@ impl Simulator {
         interval: f64,
         check: impl FnOnce(&State) -> Result<(), (String, f64)>,
     ) -> Result<(), StepError> {
+        self.begin_interval(inputs, interval)?;
+        let result = self.advance_inner(inputs, interval, &mut NoObserver).and_then(|_| self.checked(check));
+        if result.is_err() {
+            self.core.state.copy_from(&self.saved);
+        }
+        result
+    }
+
+    /// The checks before an interval, and the snapshot its failure restores.
+    fn begin_interval(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
         if !(interval.is_finite() && interval > 0.0) {
             return Err(StepError::InvalidInterval { interval });
         }
@@ -391,11 +401,7 @@ impl Simulator {
         self.check_model()?;
         self.saved.copy_from(&self.core.state);
         self.core.solver.reset_count();
-        let result = self.advance_inner(inputs, interval, &mut NoObserver).and_then(|_| self.checked(check));
-        if result.is_err() {
-            self.core.state.copy_from(&self.saved);
-        }
-        result
+        Ok(())
     }
 
     /// [`Simulator::advance_checked`] with `after` told at the end of every
@@ -411,16 +417,7 @@ impl Simulator {
         check: impl FnOnce(&State) -> Result<(), (String, f64)>,
         after: F,
     ) -> Result<Flow, StepError> {
-        if !(interval.is_finite() && interval > 0.0) {
-            return Err(StepError::InvalidInterval { interval });
-        }
-        self.check_inputs(inputs)?;
-        if !self.initialized {
-            return Err(StepError::NotInitialized);
-        }
-        self.check_model()?;
-        self.saved.copy_from(&self.core.state);
-        self.core.solver.reset_count();
+        self.begin_interval(inputs, interval)?;
         let mut observer = Observer { after, scratch: self.scratch.clone(), report: None };
         let result = self.advance_inner(inputs, interval, &mut observer);
         let result = result.and_then(|flow| self.checked(check).map(|()| flow));
