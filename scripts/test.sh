@@ -50,6 +50,12 @@ cd "$ROOT"
 # shellcheck source=scripts/env.sh
 source scripts/env.sh
 
+# A fresh clone's target dir starts with the dependencies an earlier run compiled
+# (scripts/target-seed.sh: what is cached, and how it is invalidated).
+# shellcheck source=scripts/target-seed.sh
+source scripts/target-seed.sh
+target_seed_restore "${CARGO_TARGET_DIR:-$ROOT/target}"
+
 LOGDIR=$(mktemp -d "${TMPDIR:-/tmp}/stickslip-test.XXXXXX")
 trap 'rm -rf "$LOGDIR"' EXIT
 
@@ -252,6 +258,9 @@ PY
 else
     SUMMARY+=("pytest: no test files in tests/python (skipped)")
 fi
+
+# ---- the target dir's dependencies for the next fresh clone ------------------------
+[ "$QUICK" -eq 0 ] && target_seed_save "${CARGO_TARGET_DIR:-$ROOT/target}"
 
 # ---- summary --------------------------------------------------------------------
 banner "summary"

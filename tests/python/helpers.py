@@ -131,23 +131,17 @@ def read_csv(path) -> dict:
 
 @functools.cache
 def direct_run(end: float = RUN_TIME, interval: float = INTERVAL) -> dict:
-    """The engine's own run of the reference motion (``simulate_reference``), cached per process."""
+    """The engine's own run of the reference motion (``simulate_reference``).
+
+    The binary is built with the test run's target selection (``cargo_targets``): `cargo run
+    --bin` would resolve the dependencies' features without the dev-dependencies and compile
+    the engine once more (about 55 s under scripts/test.sh, whose `cargo test` built it)."""
     out = scratch_dir() / f"direct_{end:g}_{interval:g}.csv"
-    cmd = [
-        _cargo(),
-        "run",
-        "--release",
-        "--quiet",
-        "--bin",
-        "simulate_reference",
-        "--",
-        "--out",
-        str(out),
-        "--interval",
-        repr(interval),
-        "--end",
-        repr(end),
-    ]
+    build = [_cargo(), "build", "--release", "--quiet", *cargo_targets("--bin", "simulate_reference")]
+    subprocess.run(build, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    target = Path(os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target")))
+    cmd = [str(target / "release" / "simulate_reference"), "--out", str(out)]
+    cmd += ["--interval", repr(interval), "--end", repr(end)]
     subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     return read_csv(out)
 
