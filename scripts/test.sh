@@ -19,6 +19,11 @@
 #                                            deselected, see tests/python/conftest.py;
 #                                            exit 5 "no tests collected" counts as ok)
 #
+# Before stage 0, a fresh clone's target dir gets the dependencies an earlier full run
+# compiled, and after stage 5 the full run leaves its own for the next clone
+# (scripts/target-seed.sh says how that cache is invalidated; STICKSLIP_TARGET_SEED=0
+# leaves it out).
+#
 # Every stage runs even if an earlier one failed; the script exits non-zero if
 # any stage failed. The last line is always
 #     total: N passed, N failed, N skipped
