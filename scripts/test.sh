@@ -12,7 +12,7 @@
 #      and darwin64 (STICKSLIP_DARWIN64=0 leaves darwin64 out, for developers
 #      only: in CI, CI=true, tests/python/test_darwin64.py then fails; see
 #      docs/platforms.md)
-#   3b. cargo test --test fmi3_crate on the FMI 3.0 FMU of stage 3
+#   3b. cargo test --test engine fmi3_crate on the FMI 3.0 FMU of stage 3
 #   4. win64 tests (tests/win64): the FMU's Windows DLL under wine against the
 #      linux64 .so (scripts/win64.sh)
 #   5. pytest tests/python                  (if it holds test files; `slow` tests are
@@ -45,7 +45,7 @@ QUICK=0
 if [ "${1:-}" = "--quick" ]; then
     QUICK=1
     shift
-    # The parameter-space sample (tests/parameter_space.rs, 24 variants, about 50 s)
+    # The parameter-space sample (tests/engine/parameter_space.rs, 24 variants, about 50 s)
     # with its first 8 variants only.
     export STICKSLIP_VARIANTS="${STICKSLIP_VARIANTS:-8}"
 fi
@@ -172,11 +172,11 @@ if [ -f scripts/build_fmu.sh ]; then
 fi
 
 # ---- 3b. the FMI 3.0 FMU through the Rust fmi crate -------------------------------
-# tests/fmi3_crate.rs reads the FMI 3.0 FMU stage 3 built (stage 1 ran before
+# tests/engine/fmi3_crate.rs reads the FMI 3.0 FMU stage 3 built (stage 1 ran before
 # it existed, or against an older one, and skipped): run it again on it.
-if [ -f tests/fmi3_crate.rs ]; then
+if [ -f tests/engine/fmi3_crate.rs ]; then
     export STICKSLIP_FMU3="${CARGO_TARGET_DIR:-$ROOT/target}/fmu/StickSlipManipulator-fmi3.fmu"
-    run_cargo_stage "fmi3-crate" "$LOGDIR/fmi3-crate.log" -- test --release --test fmi3_crate
+    run_cargo_stage "fmi3-crate" "$LOGDIR/fmi3-crate.log" -- test --release --test engine fmi3_crate
 fi
 
 # ---- 4. win64: the FMU's Windows binary under wine -------------------------------

@@ -13,7 +13,7 @@
 //! and AVX2 does not enable FMA: both variants perform the same IEEE
 //! operations in the same order. The AVX2 one only encodes them in VEX
 //! three-operand form with wider registers (fewer register moves and
-//! shuffles around the 3-vectors). `tests/instruction_sets.rs` runs the
+//! shuffles around the 3-vectors). `tests/engine/instruction_sets.rs` runs the
 //! reference motion under both and compares every output bit for bit.
 
 /// The instruction set the stepping loop runs with.

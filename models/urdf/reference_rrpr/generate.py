@@ -1,5 +1,5 @@
 """Writes reference_rrpr.urdf: the reference arm of models/reference_rrpr.toml as
-a URDF, for tests/urdf_reference_arm.rs.
+a URDF, for tests/engine/urdf_reference_arm.rs.
 
 Link frames are the study's DH frames i (all a_i = 0, so a joint's URDF origin is
 Rz(theta0)·Tz(d)·Rx(alpha) and its axis Rx(alpha)ᵀ·z = (0, sin alpha, cos alpha)),
@@ -47,7 +47,7 @@ o3, r3 = rf.T @ (np.zeros(3) - tf), rpy_of(rf.T)  # joint 3 at the origin of DH 
 sys.stdout.write(f'''<?xml version="1.0"?>
 <!-- The reference RRPR manipulator of models/reference_rrpr.toml written as a URDF
      by hand, for the test that both model sources give the same motion
-     (tests/urdf_reference_arm.rs). Link frames are the study's DH frames i,
+     (tests/engine/urdf_reference_arm.rs). Link frames are the study's DH frames i,
      except that link 2 is split into two parts joined by a fixed joint with
      an rpy offset (link_2 carries 10 kg, link_2b 5 kg; together they are the
      DH file's link 2 exactly), so that the fixed-joint merge, rpy offsets and

@@ -1,6 +1,6 @@
 //! Why the `fmi` crate (0.8) cannot import our FMI 3.0 FMU as it is, and the
 //! one change that lets it: shared by the FMI 3.0 masters of `tests/win64`
-//! and by `tests/fmi3_crate.rs` of the main crate (which includes this file
+//! and by `tests/engine/fmi3_crate.rs` of the main crate (which includes this file
 //! with `#[path]`; plain std only, so that it compiles in both packages).
 //!
 //! The crate parses `modelDescription.xml` with `fmi-schema` 0.8, whose

@@ -11,7 +11,7 @@
 //! Nothing panics. One source, `reference_rrpr_motor`, drives the reference
 //! arm's joints 1 and 3 with motors (one with damping and a clearance).
 //!
-//! Motor drive entries generated field by field (tests/common/motor_tables.rs:
+//! Motor drive entries generated field by field (tests/engine/common/motor_tables.rs:
 //! each field omitted, admissible, extreme or garbage; misspelt keys and
 //! types) on the joints j1 to j4 of the reference URDF arm are read exactly
 //! as written or refused, as in a DH file; an accepted one steps like the
@@ -30,14 +30,13 @@
 //! at every 97th byte. The properties combine random edits; they run
 //! `STICKSLIP_URDF_FUZZ_CASES` cases each (default 1000, under a second in
 //! a release build; the whole file about 7 s on 2 cores). A long run:
-//! `STICKSLIP_URDF_FUZZ_CASES=200000 cargo test --release --test urdf_fuzz`.
+//! `STICKSLIP_URDF_FUZZ_CASES=200000 cargo test --release --test engine urdf_fuzz`.
 
 use proptest::prelude::*;
 use stick_slip_manipulator::stepper::MotorTorques;
 use stick_slip_manipulator::{DriveInputs, Model, ModelError, Simulator, StepError};
 
-#[path = "common/motor_tables.rs"]
-mod motor_tables;
+use crate::common::motor_tables;
 use motor_tables::{resolvable, table, torque, Table};
 
 /// A URDF with a model file naming it (the model file's `urdf` name is
@@ -51,22 +50,22 @@ struct Source {
 const SOURCES: [Source; 7] = [
     Source {
         name: "reference_rrpr",
-        urdf: include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf"),
-        toml: include_str!("../models/urdf/reference_rrpr/reference_rrpr.toml"),
+        urdf: include_str!("../../models/urdf/reference_rrpr/reference_rrpr.urdf"),
+        toml: include_str!("../../models/urdf/reference_rrpr/reference_rrpr.toml"),
     },
     Source {
         name: "kuka_iiwa",
-        urdf: include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.urdf"),
-        toml: include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.toml"),
+        urdf: include_str!("../../models/urdf/kuka_iiwa/kuka_iiwa.urdf"),
+        toml: include_str!("../../models/urdf/kuka_iiwa/kuka_iiwa.toml"),
     },
     Source {
         name: "xarm6",
-        urdf: include_str!("../models/urdf/xarm6/xarm6_robot.urdf"),
-        toml: include_str!("../models/urdf/xarm6/xarm6.toml"),
+        urdf: include_str!("../../models/urdf/xarm6/xarm6_robot.urdf"),
+        toml: include_str!("../../models/urdf/xarm6/xarm6.toml"),
     },
     Source {
         name: "arm",
-        urdf: include_str!("urdf/arm.urdf"),
+        urdf: include_str!("../urdf/arm.urdf"),
         toml: r#"urdf = "arm.urdf"
 tip_link = "tcp"
 end_point = [0.0, 0.0, 0.02]
@@ -80,7 +79,7 @@ drive = { type = "flexible", k = 5.0e3, h = 1.0 }
     },
     Source {
         name: "plain",
-        urdf: include_str!("urdf/plain.urdf"),
+        urdf: include_str!("../urdf/plain.urdf"),
         toml: r#"urdf = "plain.urdf"
 [joints.shoulder]
 drive = { type = "flexible", k = 1.0e4, h = 2.0 }
@@ -90,7 +89,7 @@ drive = { type = "flexible", k = 1.0e5 }
     },
     Source {
         name: "robust",
-        urdf: include_str!("urdf/robust.urdf"),
+        urdf: include_str!("../urdf/robust.urdf"),
         toml: r#"urdf = "robust.urdf"
 [joints.shoulder]
 drive = { type = "flexible", k = 1.0e4, h = 2.0 }
@@ -98,7 +97,7 @@ drive = { type = "flexible", k = 1.0e4, h = 2.0 }
     },
     Source {
         name: "reference_rrpr_motor",
-        urdf: include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf"),
+        urdf: include_str!("../../models/urdf/reference_rrpr/reference_rrpr.urdf"),
         toml: MOTOR_TOML,
     },
 ];

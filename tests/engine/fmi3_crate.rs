@@ -28,7 +28,7 @@
 //! library of this build (then it may hold an older engine), the tests print
 //! why and return (skip): `cargo test` does not build the FMI 3.0 library
 //! (the workspace crate `fmi3/`), so it cannot pack one of its own as
-//! tests/fmi_crate.rs does.
+//! tests/engine/fmi_crate.rs does.
 
 use std::ffi::{c_char, CStr, CString};
 use std::io::{Cursor, Read, Write};
@@ -44,13 +44,13 @@ use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
 
 #[allow(dead_code)]
-#[path = "win64/src/fmi3_schema.rs"]
+#[path = "../win64/src/fmi3_schema.rs"]
 mod fmi3_schema;
 
 const STEP: f64 = 1e-3;
 const STEPS: usize = 100;
 /// Outputs that count the error control's decisions: not compared with the
-/// direct run (as in tests/fmi_crate.rs, which does not compare them either).
+/// direct run (as in tests/engine/fmi_crate.rs, which does not compare them either).
 const STATISTICS: [&str; 3] = ["n_substeps", "n_rejected", "h_last"];
 
 /// The FMU under test, or why there is none (the tests then skip).
@@ -70,7 +70,7 @@ fn fmu3_file() -> Option<PathBuf> {
                 built.display()
             ));
         }
-        // The engine's cdylib of this build (as in tests/fmi_crate.rs) is relinked whenever
+        // The engine's cdylib of this build (as in tests/engine/fmi_crate.rs) is relinked whenever
         // the library changes: an FMU older than it may hold an older engine, which would
         // differ from the direct run for that reason alone.
         let packager = PathBuf::from(env!("CARGO_BIN_EXE_package_fmu"));

@@ -7,7 +7,7 @@
 //! same arm written with z axes: τ, the joint reactions in the URDF child link
 //! frames (turned by `Joint::reported_axes`) and the end point, to 1e-12.
 //!
-//! The URDF reader's own refusals are tested in tests/urdf_reader.rs; here
+//! The URDF reader's own refusals are tested in tests/engine/urdf_reader.rs; here
 //! only that they reach the model file's caller with the URDF's file name.
 //!
 //! Motor drives in `[joints.<name>]` (`drive = { type = "motor", … }`): on
@@ -25,8 +25,8 @@ use stick_slip_manipulator::model::{ContactGeometry, Drive, Parameter, Rotor};
 use stick_slip_manipulator::stepper::MotorTorques;
 use stick_slip_manipulator::{Data, DriveInputs, Model, ModelError, Simulator};
 
-const REFERENCE_TOML: &str = include_str!("../models/urdf/reference_rrpr/reference_rrpr.toml");
-const REFERENCE_URDF: &str = include_str!("../models/urdf/reference_rrpr/reference_rrpr.urdf");
+const REFERENCE_TOML: &str = include_str!("../../models/urdf/reference_rrpr/reference_rrpr.toml");
+const REFERENCE_URDF: &str = include_str!("../../models/urdf/reference_rrpr/reference_rrpr.urdf");
 const REFERENCE_URDF_NAME: &str = "reference_rrpr.urdf";
 const MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models/urdf");
 
@@ -493,8 +493,8 @@ fn joint_names_are_the_urdf_names_in_chain_order() {
 // Motor drives in [joints.<name>]
 // ---------------------------------------------------------------------------
 
-const KUKA_TOML: &str = include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.toml");
-const KUKA_URDF: &str = include_str!("../models/urdf/kuka_iiwa/kuka_iiwa.urdf");
+const KUKA_TOML: &str = include_str!("../../models/urdf/kuka_iiwa/kuka_iiwa.toml");
+const KUKA_URDF: &str = include_str!("../../models/urdf/kuka_iiwa/kuka_iiwa.urdf");
 /// The drive line of lbr_iiwa_joint_2 in kuka_iiwa.toml (line 83).
 const KUKA_J2_DRIVE: &str = r#"drive = { type = "flexible", k = 7.8e4, h = 31.0, clearance = 0.0 }"#;
 

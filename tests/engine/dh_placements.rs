@@ -5,7 +5,7 @@
 //! the links' centres of mass, the bearing reference points, the slider
 //! centres and the end point land where eq. (3.2) puts them (to 1e-12).
 
-mod common;
+use crate::common;
 
 use common::{random_dh_chain, Rng};
 use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics, frame_transform, reaction_point};

@@ -276,7 +276,7 @@ fn huge_rotor_with_feed_forward_is_the_prescribed_drive() {
 /// With Coulomb and viscous motor friction, stiction of link and rotor and
 /// a motor torque that changes, the account E − E₀ = W_drive − Q_friction −
 /// Q_damping − Q_motor closes to 1e-6 of the work done, as for flexible
-/// drives (tests/energy_conservation.rs).
+/// drives (tests/engine/energy_conservation.rs).
 #[test]
 fn energy_account_closes_with_motor_drives() {
     let mut model = Model::reference_rrpr_motor();

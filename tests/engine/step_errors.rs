@@ -7,7 +7,7 @@
 //! caller can retry with other inputs or a shorter interval. Long chains (24
 //! joints) step and keep their energy account.
 
-mod common;
+use crate::common;
 
 use stick_slip_manipulator::model::Parameter;
 use stick_slip_manipulator::{DriveInputs, Model, NonConvergence, Simulator, StepError};

@@ -8,7 +8,7 @@
 //! their magnitudes. Drives (2.1) and the friction characteristic are checked
 //! at their special points. Tolerance 1e-12 relative.
 
-mod common;
+use crate::common;
 
 use common::Rng;
 use stick_slip_manipulator::forces::drive::{

@@ -9,7 +9,7 @@
 //! balance of the subtree beyond each joint, built from the B-matrix
 //! derivatives. Energies by (3.3), (3.4) and ½ q̇ᵀMq̇ agree as well.
 
-mod common;
+use crate::common;
 
 use common::{random_chain, Rng};
 use stick_slip_manipulator::algorithms::crba::crba;

@@ -16,7 +16,7 @@
 //! stable above v_cr = v_s·ln((F_s − F_k)/(h·v_s)) and turns into stick–slip
 //! below it.
 
-mod common;
+use crate::common;
 
 use common::sliding_block;
 use stick_slip_manipulator::model::{FrictionCoefficients, IntegratorSettings};

@@ -25,8 +25,7 @@ use stick_slip_manipulator::model::{Parameter, REFERENCE_RRPR_MOTOR_TOML, REFERE
 use stick_slip_manipulator::stepper::MotorTorques;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator};
 
-#[path = "common/motor_tables.rs"]
-mod motor_tables;
+use crate::common::motor_tables;
 use motor_tables::{resolvable, table, torque, Field, Table};
 
 /// Numbers a mutation may put in place of one in the file.

@@ -10,7 +10,7 @@
 //! located to 1e-9 relative, i.e. inside the sub-step in which the static
 //! limit is exceeded.
 
-mod common;
+use crate::common;
 
 use common::sliding_block;
 use stick_slip_manipulator::model::FrictionCoefficients;

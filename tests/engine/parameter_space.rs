@@ -24,9 +24,9 @@
 //!
 //! `STICKSLIP_VARIANTS` (default 24) and `STICKSLIP_SEED` (default 1) set the
 //! sample; the larger run of docs/error_control.md is
-//! `STICKSLIP_VARIANTS=200 cargo test --release --test parameter_space -- --nocapture`.
+//! `STICKSLIP_VARIANTS=200 cargo test --release --test engine parameter_space -- --nocapture`.
 
-mod common;
+use crate::common;
 
 use common::Rng;
 use stick_slip_manipulator::model::{IntegratorSettings, Parameter};

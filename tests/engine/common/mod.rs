@@ -2,6 +2,8 @@
 //! generator, random chains and simple one-joint models.
 #![allow(dead_code)]
 
+pub mod motor_tables;
+
 use stick_slip_manipulator::math::{Mat3, Vec3};
 use stick_slip_manipulator::model::{
     ContactGeometry, DhJoint, DhRow, Drive, FrictionCoefficients, IntegratorSettings, JointFriction, JointKind, Link,

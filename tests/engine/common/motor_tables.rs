@@ -4,7 +4,7 @@
 //! motor_coulomb omitted, a random admissible value, an extreme number or
 //! garbage; sometimes a misspelt key or drive type; with the drive the table
 //! must be read as (`Table::expected`, `None`: it must be refused).
-//! Included with `#[path = "common/motor_tables.rs"] mod motor_tables;`.
+//! A module of `common` (`use crate::common::motor_tables;`).
 #![allow(dead_code)]
 
 use proptest::prelude::*;
