@@ -61,13 +61,6 @@ source scripts/env.sh
 source scripts/target-seed.sh
 target_seed_restore "${CARGO_TARGET_DIR:-$ROOT/target}"
 
-# No debug info in the test builds: the release profile's line tables (debug = 1, for
-# profiling the engine) cost about 12 s of every build of the engine. Every cargo build of
-# the run (the tests, the FMUs' libraries, tests/win64's masters) uses this one profile, so
-# that they share their dependencies; cargo keeps the two profiles' files apart, so that
-# scripts/main.sh's builds (debug = 1) and these do not rebuild each other's.
-export CARGO_PROFILE_RELEASE_DEBUG="${CARGO_PROFILE_RELEASE_DEBUG:-0}"
-
 LOGDIR=$(mktemp -d "${TMPDIR:-/tmp}/stickslip-test.XXXXXX")
 trap 'rm -rf "$LOGDIR"' EXIT
 
@@ -204,11 +197,12 @@ if [ -d tests/win64 ] && [ "$QUICK" -eq 0 ]; then
     export STICKSLIP_XPLAT_DIR="$LOGDIR/xplat"
     win64_tests=(test --release --manifest-path tests/win64/Cargo.toml --no-fail-fast)
     linux_target=(--target-dir "${CARGO_TARGET_DIR:-$ROOT/target}")   # not tests/win64/target
-    # The release profile of the whole run (CARGO_PROFILE_RELEASE_DEBUG, above): the
-    # Linux master then reuses the `fmi` crate of stage 1 from the shared target dir, and
-    # the Windows master the std that build_fmu.sh built for the DLL, instead of building
-    # them again (a profile difference cargo keeps out of the file names would make the
-    # two builds overwrite each other's artifacts each run).
+    # The main crate's release profile (debug = 1): the Linux master then reuses
+    # the `fmi` crate of stage 1 from the shared target dir, and the Windows
+    # master the std that build_fmu.sh built for the DLL, instead of building
+    # them again (a profile difference cargo keeps out of the file names would
+    # make the two builds overwrite each other's artifacts each run).
+    export CARGO_PROFILE_RELEASE_DEBUG=1
     run_libtest_stage "win64-a-linux64" "$LOGDIR/win64-a.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64
     run_libtest_stage "win64-fmi3-a-linux64" "$LOGDIR/win64-fmi3-a.log" -- \
         cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_fmi3
@@ -226,6 +220,7 @@ if [ -d tests/win64 ] && [ "$QUICK" -eq 0 ]; then
         TOT_FAIL=$((TOT_FAIL + 2))
     fi
     run_libtest_stage "win64-c-linux64" "$LOGDIR/win64-c.log" -- cargo "${win64_tests[@]}" "${linux_target[@]}" --test linux64_after_win64
+    unset CARGO_PROFILE_RELEASE_DEBUG
 fi
 
 # ---- 5. Python tests ------------------------------------------------------------
