@@ -48,6 +48,11 @@ if [ "${1:-}" = "--quick" ]; then
     # The parameter-space sample (tests/engine/parameter_space.rs, 24 variants, about 50 s)
     # with its first 8 variants only.
     export STICKSLIP_VARIANTS="${STICKSLIP_VARIANTS:-8}"
+    # No debug info in the inner loop's builds (the release profile's line tables, for
+    # profiling the engine, cost about 12 s of every build of the engine; linux64 only, so
+    # no cross build sees this profile). cargo keeps the two profiles' files apart: the
+    # full run's builds and these do not rebuild each other's.
+    export CARGO_PROFILE_RELEASE_DEBUG="${CARGO_PROFILE_RELEASE_DEBUG:-0}"
 fi
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
