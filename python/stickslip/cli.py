@@ -3,24 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
+from .cluster import cluster_arguments
 from .convergence import DEFAULT_THRESHOLD
-
-
-def cluster_arguments(p: argparse.ArgumentParser, in_process: bool = False) -> None:
-    """--scheduler ADDRESS | --workers N, the Dask cluster of `sweep` and `fit`
-    (stickslip.sweep._client); ``in_process``: --workers 0 runs everything in this process."""
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
-    where.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help=f"worker processes of the local cluster (default: the number of cores, {os.cpu_count()}"
-        + ("; 0: every run in this process)" if in_process else ")"),
-    )
 
 
 def _sweep_arguments(p: argparse.ArgumentParser) -> None:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from distributed import WorkerPlugin
 
+from .cluster import ClusterError, connect
 from .convergence import COLUMNS as CHECK_COLUMNS
 from .convergence import describe, run_checked, selected_runs, spread_columns, tightened
 from .fmu import content_hash, model_description
@@ -44,7 +45,7 @@ WORKER_WAIT = 120.0  # s to wait for the first worker of a cluster
 LOST = "lost"  # status of a variant whose task failed outside the FMU: run again on a rerun
 
 
-class SweepError(RuntimeError):
+class SweepError(ClusterError):
     """A sweep that cannot start or continue; the message says why and what to do."""
 
 
@@ -256,28 +257,6 @@ def prepare(spec: Spec, out, check: Check | None = None) -> tuple:
     return data, digest, motion, ResultStore(Path(out), spec, digest, columns, convergence), metrics
 
 
-def _client(scheduler: str | None, workers: int | None):
-    """(client, cluster or None): an existing scheduler, or a LocalCluster of processes."""
-    import logging
-
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        try:
-            return Client(scheduler, timeout="20s"), None
-        except (OSError, ValueError) as e:
-            raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
-    cluster = LocalCluster(
-        n_workers=workers or os.cpu_count() or 1,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    return Client(cluster), cluster
-
-
 def run_sweep(
     spec: Spec,
     out,
@@ -370,7 +349,7 @@ def _execute(
 ):
     from distributed import as_completed
 
-    client, cluster = _client(scheduler, workers)
+    client, cluster = connect(scheduler, workers)
     progress = None
     try:
         client.register_plugin(FmuPlugin(data, digest), name=plugin_name(digest))

@@ -53,9 +53,9 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
     payloads = [payload_of(e) for e in spec.experiments]
     own_cluster = None
     if client is None and workers != 0:
-        from ..sweep import _client
+        from ..cluster import connect
 
-        client, own_cluster = _client(scheduler, workers)
+        client, own_cluster = connect(scheduler, workers)
     try:
         _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)

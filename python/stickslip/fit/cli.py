@@ -14,13 +14,13 @@ import sys
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("spec", help="the fit SPEC (TOML): fmu, [[experiment]], [estimate], [options] (docs/calibration.md)")
     p.add_argument("--out", required=True, help="result directory: fit.json, report.md, fitted.toml, plots")
-    from ..cli import cluster_arguments
+    from ..cluster import cluster_arguments
 
     cluster_arguments(p, in_process=True)
 
 
 def main(a: argparse.Namespace) -> int:
-    from ..sweep import SweepError
+    from ..cluster import ClusterError
     from . import FitError, fit
     from .spec import FitSpecError, load
 
@@ -39,7 +39,7 @@ def main(a: argparse.Namespace) -> int:
     except FitSpecError as e:
         print(f"stickslip fit: {e}", file=sys.stderr)
         return 2
-    except (FitError, SweepError) as e:
+    except (FitError, ClusterError) as e:
         print(f"stickslip fit: {e}", file=sys.stderr)
         return 1
     for name, p in result["parameters"].items():
