@@ -22,27 +22,40 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..motion import motor_joints
-from .problem import Evaluator, Problem, measured_segments, payload_of
-from .solve import StartResult, jacobian, latin_hypercube, run_starts, uncertainty
+from .problem import Evaluator, Problem, payload_of
+from .solve import StartResult, jacobian, latin_hypercube, local_fit, run_starts, segment_lengths
 from .spec import FitSpec, FitSpecError, load
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
 SAME_COST = 0.95  # starts whose cost the data cannot reject at this level are "of similar cost"
+# The FMU's own numerical error: the answer is redone at a tenfold tighter error_tolerance
+# while the standard errors move by more than SE_STEP_CHANGE with a 3x Jacobian step, or a
+# Gauss-Newton step at the tighter tolerance moves an estimate by more than SHIFT_LIMIT
+# standard errors; at most TIGHTENINGS times, never below TOLERANCE_FLOOR.
+SE_STEP_CHANGE = 0.10
+SHIFT_LIMIT = 0.3
+TIGHTENINGS = 2
+TOLERANCE_FLOOR = 1e-8
 
 
 class FitError(RuntimeError):
     """A fit that could not run to the end (no start gave a finite cost)."""
 
 
-def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None, client=None, base_dir=None) -> dict:
+def fit(
+    spec, out=None, workers: int | None = None, scheduler: str | None = None, client=None, base_dir=None, progress=None
+) -> dict:
     """Fits the SPEC (a TOML path or a dict); writes DIR ``out`` when given; returns the
-    content of fit.json (plus ``"_internal"``, the arrays the report uses)."""
+    content of fit.json (plus ``"_internal"``, the arrays the report uses). ``progress``:
+    a function of one line of text, called per stage and start (the CLI prints them)."""
     t0 = time.perf_counter()
+    say = progress or (lambda line: None)
     spec = spec if isinstance(spec, FitSpec) else load(spec, base_dir)
     fmu_data = Path(spec.fmu).read_bytes()
     from ..fmu import content_hash, unpacked
@@ -59,21 +72,19 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
     try:
         _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
+        problem = Problem(spec, evaluator, flexible)
         # Multiple shooting restarts each segment from the measured q, q' of every flexible
         # joint; a motor drive's rotor state (theta_m, omega_m) is not measured that way.
-        motors = motor_joints(md)
-        segments = [
-            None if motors else measured_segments(e, spec.options["segment"], flexible) for e in spec.experiments
-        ]
+        segments = problem.segments(spec.options["segment"])
         shooting = spec.options["shooting"]
         if shooting == "multiple" and any(s is None for s in segments):
+            motors = motor_joints(md)
             raise FitSpecError(
                 f'{spec.source}: [options] shooting = "multiple" needs every flexible joint\'s q measured '
                 f"(q[{'], q['.join(map(str, flexible))}]) in every experiment, and no motor drives"
                 + (f" (this FMU has them on joints {motors})" if motors else "")
             )
         multiple = shooting == "multiple" or (shooting == "auto" and all(s is not None for s in segments))
-        problem = Problem(spec, evaluator, segments)
         initial = {e.name: e.initial for e in spec.estimates}
         starts = [StartResult(dict(initial), "initial")]
         tunable = {
@@ -87,18 +98,33 @@ def fit(spec, out=None, workers: int | None = None, scheduler: str | None = None
             idim_theta, notes = idim.estimate(spec, unpacked(fmu_data, digest), flexible, initial, tunable)
         except (RuntimeError, OSError, KeyError, ValueError) as e:
             idim_theta, notes = {}, [f"equation-error stage failed, its start left out: {e}"]
+        for note in notes:
+            say(f"fit: {note}")
         if idim_theta:
             z = problem.transform.z([idim_theta.get(n, initial[n]) for n in initial])
             starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), "equation-error"))
         for k, z in enumerate(latin_hypercube(len(initial), spec.options["starts"] - 1, spec.options["seed"])):
             starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), f"latin hypercube {k + 1}"))
         threads = max(1, min(len(starts), _cores(client)))
-        results = run_starts(problem, starts, multiple, spec.options, threads)
+        say(
+            f"fit: {len(starts)} start(s), "
+            + ("multiple shooting in a continuation of segment lengths, then " if multiple else "")
+            + "single shooting"
+        )
+
+        def start_done(s):
+            ms = f", multiple shooting {s.ms_cost:.6g}" if s.ms_cost is not None else ""
+            say(
+                f"fit: start {s.origin!r}: cost {s.cost:.6g} (at its start {s.start_cost:.6g}{ms}), "
+                f"{s.status}; {evaluator.runs} FMU runs, {time.perf_counter() - t0:.0f} s"
+            )
+
+        results = run_starts(problem, starts, multiple, spec.options, threads, start_done)
         finite = [s for s in results if math.isfinite(s.cost) and s.z is not None]
         if not finite:
             raise FitError("no start reached a finite cost: " + "; ".join(s.message for s in results))
         best = min(finite, key=lambda s: s.cost)
-        result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0)
+        result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say)
     finally:
         if own_cluster is not None:
             client.close()
@@ -141,23 +167,103 @@ def _cores(client) -> int:
         return 1
 
 
-def _summarize(
-    spec, problem: Problem, best: StartResult, results: list, multiple: bool, notes: list, evaluator, t0: float
-) -> dict:
-    options = spec.options
-    transform = problem.transform
-    z = best.z
-    r = problem.residuals([z], "single")[0]
-    J, jac_notes = jacobian(problem, z, r, "single", options["diff_step"])
-    unc = uncertainty(problem, z, r, J, options)
+@dataclass
+class Optimum:
+    """What the fit knows at its answer z: residuals, J in θ's units, the uncertainty, and how
+    much the standard errors move with a 3x Jacobian step."""
+
+    z: np.ndarray
+    r: np.ndarray
+    J: np.ndarray
+    unc: object
+    se_change: float
+    notes: list
+
+
+def _at_optimum(problem: Problem, z, options: dict) -> Optimum:
+    from .uncertainty import rho_prime, uncertainty
+
+    names = [e.name for e in problem.spec.estimates]
+    r = problem.residuals([z])[0]
+    to_theta = np.linalg.inv(problem.transform.jacobian(z))
+    Jz, notes = jacobian(problem, z, r, None, options["diff_step"])
     # The Jacobian again with a 3x larger step: standard errors that depend on the step
     # would mean the integration's noise, not the data, set them.
-    J3, _ = jacobian(problem, z, r, "single", 3.0 * options["diff_step"])
-    unc3 = uncertainty(problem, z, r, J3, options)
+    J3z, _ = jacobian(problem, z, r, None, 3.0 * options["diff_step"])
+    weights = None if options["loss"] == "linear" else np.sqrt(rho_prime(r, options["loss"], options["f_scale"]))
+    J, J3 = Jz @ to_theta, J3z @ to_theta
+    unc = uncertainty(J, r, problem.blocks(), names, options["absolute_sigma"], weights)
+    unc3 = uncertainty(J3, r, problem.blocks(), names, options["absolute_sigma"], weights)
     with np.errstate(invalid="ignore", divide="ignore"):
-        change = np.abs(unc3.std_error / unc.std_error - 1.0)
+        change = np.abs(unc3.std_error_classical / unc.std_error_classical - 1.0)
     finite = change[np.isfinite(change)]
-    se_change = float(finite.max()) if len(finite) else math.nan
+    return Optimum(z, r, J, unc, float(finite.max()) if len(finite) else math.nan, notes)
+
+
+def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -> tuple:
+    """(problem, optimum, record): the answer at an error_tolerance the estimates no longer
+    notice. A tenfold tighter tolerance gets one Gauss-Newton step from the answer; where it
+    moves an estimate by more than SHIFT_LIMIT standard errors, or the standard errors move
+    by more than SE_STEP_CHANGE with a 3x Jacobian step, the fit goes on from the answer at
+    the tighter tolerance, and the check is repeated there."""
+    default = _fmu_tolerance(problem.spec)
+    record = []
+    for _ in range(TIGHTENINGS):
+        tol = problem.error_tolerance if problem.error_tolerance is not None else default
+        if tol is None or tol / 10.0 < TOLERANCE_FLOOR:
+            break
+        tighter = problem.with_tolerance(tol / 10.0)
+        r = tighter.residuals([opt.z])[0]
+        Jz, _ = jacobian(tighter, opt.z, r, None, options["diff_step"])
+        J = Jz @ np.linalg.inv(problem.transform.jacobian(opt.z))
+        step = -np.linalg.lstsq(J, r, rcond=None)[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shift = np.abs(step) / opt.unc.std_error
+        shift = float(np.nanmax(np.where(np.isfinite(shift), shift, np.nan))) if np.any(np.isfinite(shift)) else 0.0
+        entry = {
+            "error_tolerance": tol,
+            "std_error_change_with_3x_step": opt.se_change,
+            "shift_at_tenfold_tighter_se": shift,
+        }
+        record.append(entry)
+        if not (opt.se_change > SE_STEP_CHANGE or shift > SHIFT_LIMIT):
+            break
+        say(
+            f"fit: at error_tolerance {tol:g} the estimates move by {shift:.2g} standard errors at a tenfold tighter "
+            f"one (standard errors {100 * opt.se_change:.0f} % with a 3x Jacobian step): refitting at {tol / 10:g}"
+        )
+        res, _ = local_fit(tighter, opt.z, None, options)
+        problem = tighter
+        opt = _at_optimum(problem, res.x, options)
+        entry["refitted"] = True
+    return problem, opt, record
+
+
+def _fmu_tolerance(spec) -> float | None:
+    for v in spec.model_description.modelVariables:
+        if v.name == "error_tolerance" and v.start is not None:
+            return float(v.start)
+    return None
+
+
+def _summarize(
+    spec, problem: Problem, best: StartResult, results: list, multiple: bool, notes: list, evaluator, t0: float, say
+) -> dict:
+    from .profile import profiles
+    from .uncertainty import goodness_of_fit, misfit_warnings
+
+    options = spec.options
+    transform = problem.transform
+    opt = _at_optimum(problem, best.z, options)
+    problem, opt, tightening = _numerically_converged(problem, opt, options, say)
+    z, r, unc, se_change, jac_notes = opt.z, opt.r, opt.unc, opt.se_change, opt.notes
+    cost = 0.5 * float(r @ r)
+    channels = [(c.sigma, c.resolution) for e in spec.experiments for c in e.channels]
+    gof = goodness_of_fit(
+        r, problem.blocks(), [(n, *c) for n, c in zip(problem.channel_names(), channels, strict=True)], len(z)
+    )
+    say(f"fit: best cost {cost:.6g}; profiles and goodness of fit ({evaluator.runs} FMU runs so far)")
+    profile = profiles(problem, transform.theta(z), cost, opt.J, unc, unc.scale) if options["loss"] == "linear" else {}
     theta = transform.theta(z)
     names = [e.name for e in spec.estimates]
     warnings = []
@@ -165,14 +271,22 @@ def _summarize(
     for j, e in enumerate(spec.estimates):
         span = e.high - e.low
         at_bound = bool(min(theta[j] - e.low, e.high - theta[j]) <= 1e-6 * span)
+        prof = profile.get(e.name)
+        se = float(unc.std_error[j])
+        if prof is not None and math.isfinite(se):
+            se = max(se, prof["std_error_profile"])
         params[e.name] = {
             "value": float(theta[j]),
-            "std_error": float(unc.std_error[j]),
+            "std_error": se,
+            "std_error_classical": float(unc.std_error_classical[j]),
+            "std_error_sandwich": float(unc.std_error_sandwich[j]),
             "initial": e.initial,
             "bounds": [e.low, e.high],
             "at_bound": at_bound,
             "scale": e.scale,
         }
+        if prof is not None:
+            params[e.name]["profile"] = {k: v for k, v in prof.items() if k != "runs"}
         if at_bound:
             side = "lower" if theta[j] - e.low <= e.high - theta[j] else "upper"
             warnings.append(
@@ -193,11 +307,28 @@ def _summarize(
             f"J'J is near-singular (relative singular value {rel:.1e}): the direction {combo} "
             "(column-scaled) is not determined by the data"
         )
-    if math.isfinite(se_change) and se_change > 0.25:
+    last = tightening[-1] if tightening else None
+    if last is not None and last.get("refitted"):
+        warnings.append(
+            f"the FMU's numerical error still moved the estimates at error_tolerance {last['error_tolerance'] / 10:g} "
+            f"(the last check: {last['shift_at_tenfold_tighter_se']:.2g} standard errors); the answer is the fit at "
+            "that tolerance, tighter ones were not tried: set [options] error_tolerance lower to check"
+        )
+    elif math.isfinite(se_change) and se_change > SE_STEP_CHANGE:
         warnings.append(
             f"the standard errors change by {100 * se_change:.0f} % when the Jacobian's step is tripled: the "
             "integration noise is not far below the step; tighten error_tolerance"
         )
+    misfit = misfit_warnings(gof, options["absolute_sigma"])
+    warnings = misfit + warnings
+    for name, prof in profile.items():
+        for side, is_open in zip(("lower", "upper"), prof["open"], strict=True):
+            if is_open:
+                end = prof["interval_95"][0 if side == "lower" else 1]
+                warnings.append(
+                    f"{name}: the profile cost stays within the 95 % threshold as far as the walk went on the {side} "
+                    f"side ({end:.6g}): the data bound it only weakly there"
+                )
     # Another minimum is "of similar cost" when the data cannot reject it: its cost exceeds
     # the best by less than half the chi-square quantile of p degrees of freedom, in units of
     # the noise scale (a likelihood-ratio test at the level SAME_COST).
@@ -218,7 +349,7 @@ def _summarize(
             f"start {s.origin!r} ended in a different minimum of similar cost ({s.cost:.6g} vs {best.cost:.6g}), "
             f"differing in {', '.join(apart)}: the data do not single out one solution"
         )
-    runs = problem.runs([z], "single")[0]
+    runs = problem.runs([z])[0]
     residual_rms = {}
     for ex, res in zip(spec.experiments, runs, strict=True):
         for k, c in enumerate(ex.channels):
@@ -227,10 +358,23 @@ def _summarize(
             residual_rms[key] = float(np.sqrt(np.mean(d**2)))
     m = len(r)
     failures = problem.failures
+    trusted = not misfit and not similar
+    if misfit:
+        verdict = "NOT TRUSTED: " + misfit[0].split(":")[0] + " — the model does not follow the data (see the warnings)"
+    elif similar:
+        verdict = "NOT UNIQUE: another start ended in a different minimum the data cannot reject"
+    else:
+        verdict = f"the residuals are what the noise model says (chi-square p = {gof['p_value']:.2g})"
     return {
+        "trusted": trusted,
+        "verdict": verdict,
         "parameters": params,
         "correlation": {"names": names, "matrix": np.round(unc.correlation, 12).tolist()},
-        "cost": float(best.cost),
+        "cost": cost,
+        "goodness_of_fit": {
+            **{k: v for k, v in gof.items() if k != "channels"},
+            "channels": {c.name: {k: v for k, v in c.__dict__.items() if k != "name"} for c in gof["channels"]},
+        },
         "rms_normalized_residual": float(np.sqrt(np.mean(r**2))),
         "residual_rms": residual_rms,
         "n_evaluations": evaluator.runs,
@@ -243,6 +387,8 @@ def _summarize(
                 "initial": s.initial,
                 "cost": s.cost if math.isfinite(s.cost) else None,
                 "multiple_shooting_cost": s.ms_cost,
+                "cost_at_start": s.start_cost if math.isfinite(s.start_cost) else None,
+                "cost_after_continuation": s.continuation_cost,
                 "parameters": transform.named(transform.theta(s.z)) if s.z is not None else None,
                 "status": s.status,
                 "iterations": s.nfev,
@@ -255,8 +401,17 @@ def _summarize(
             "loss": options["loss"],
             "absolute_sigma": options["absolute_sigma"],
             "sigma_scale": unc.scale,
-            "error_tolerance": options["error_tolerance"],
+            "error_tolerance": problem.error_tolerance,
+            "error_tolerance_checks": tightening,
+            "segment_lengths_s": segment_lengths(problem, options["segment"]) if multiple else None,
             "diff_step": options["diff_step"],
+            "sandwich_lag_windows": dict(zip(problem.channel_names(), unc.lags, strict=False)),
+            "noise": {
+                name: {"sigma": c.sigma, "resolution": c.resolution, "resolution_detected": c.resolution_detected}
+                for name, c in zip(
+                    problem.channel_names(), [c for e in spec.experiments for c in e.channels], strict=True
+                )
+            },
             "std_error_change_with_3x_step": se_change,
             "condition_number": unc.condition,
             "samples": m,

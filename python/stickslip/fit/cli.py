@@ -35,7 +35,7 @@ def main(a: argparse.Namespace) -> int:
     names = ", ".join(spec.names)
     print(f"fit: {names} from {len(spec.experiments)} experiment(s) of {spec.fmu.name}", flush=True)
     try:
-        result = fit(spec, out=a.out, workers=a.workers, scheduler=a.scheduler)
+        result = fit(spec, out=a.out, workers=a.workers, scheduler=a.scheduler, progress=_say)
     except FitSpecError as e:
         print(f"stickslip fit: {e}", file=sys.stderr)
         return 2
@@ -49,6 +49,11 @@ def main(a: argparse.Namespace) -> int:
         f"fit: cost {result['cost']:.6g}, rms normalized residual {result['rms_normalized_residual']:.3g}, "
         f"{result['n_evaluations']} FMU runs, {result['wall_s']:.1f} s -> {a.out}/fit.json"
     )
+    print(f"fit: {result['verdict']}")
     for w in result["warnings"]:
         print(f"warning: {w}")
     return 0
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)

@@ -21,6 +21,7 @@ import threading
 
 import numpy as np
 
+from ..motion import motor_joints
 from .runner import Payload, RunResult, Segments, run
 
 PENALTY = 1e3  # normalized residual of a sample a run did not reach
@@ -110,32 +111,67 @@ class Evaluator:
 
 
 class Problem:
-    """Residuals of a fit for points z, in single or multiple shooting."""
+    """Residuals of a fit for points z, in single shooting (``segment=None``) or in multiple
+    shooting with segments of ``segment`` seconds."""
 
-    def __init__(self, spec, evaluator: Evaluator, segments: list | None):
+    def __init__(self, spec, evaluator: Evaluator, flexible: list, error_tolerance: float | None = None):
         self.spec = spec
         self.transform = Transform(spec.estimates)
         self.evaluator = evaluator
-        self.segments = segments  # per experiment: Segments, or None for single shooting
+        self.flexible = list(flexible)
+        self.error_tolerance = spec.options["error_tolerance"] if error_tolerance is None else error_tolerance
         self.measured = [np.column_stack([c.values for c in e.channels]) for e in spec.experiments]
-        self.sigma = [np.array([c.sigma for c in e.channels]) for e in spec.experiments]
+        self.sigma = [np.array([c.std for c in e.channels]) for e in spec.experiments]
         self.m = sum(x.size for x in self.measured)
         self.failures = []  # (parameters, experiment, status, message) of runs that did not finish
         self._lock = threading.Lock()
+        self._segments = {}
+
+    def with_tolerance(self, error_tolerance: float) -> Problem:
+        """The same problem with the FMU's error_tolerance set to ``error_tolerance``."""
+        other = Problem.__new__(Problem)
+        other.__dict__.update(self.__dict__)
+        other.error_tolerance = error_tolerance
+        return other
+
+    def segments(self, segment: float) -> list | None:
+        """Per experiment the multiple-shooting Segments of about ``segment`` s, or None
+        where an experiment cannot be restarted from its measurements."""
+        with self._lock:
+            if segment not in self._segments:
+                self._segments[segment] = [
+                    None if motor_joints(self.spec.model_description) else measured_segments(e, segment, self.flexible)
+                    for e in self.spec.experiments
+                ]
+            return self._segments[segment]
+
+    def blocks(self) -> list:
+        """(first row, end row) of each channel's time series in a residual vector."""
+        out, offset = [], 0
+        for meas in self.measured:
+            n, k = meas.shape
+            out += [(offset + j * n, offset + (j + 1) * n) for j in range(k)]
+            offset += n * k
+        return out
+
+    def channel_names(self) -> list:
+        many = len(self.spec.experiments) > 1
+        return [f"{e.name}:{c.output}" if many else c.output for e in self.spec.experiments for c in e.channels]
 
     def parameters(self, z) -> dict:
         values = self.transform.named(self.transform.theta(z))
-        if self.spec.options["error_tolerance"] is not None:
-            values["error_tolerance"] = self.spec.options["error_tolerance"]
+        if self.error_tolerance is not None:
+            values["error_tolerance"] = self.error_tolerance
         return values
 
-    def runs(self, points: list, shooting: str) -> list:
+    def runs(self, points: list, segment: float | None = None) -> list:
         """For each z in points: the RunResults of every experiment."""
+        segments = self.segments(segment) if segment is not None else [None] * len(self.spec.experiments)
         jobs = []
         for z in points:
             p = self.parameters(z)
             for i in range(len(self.spec.experiments)):
-                jobs.append((i, p, self.segments[i] if shooting == "multiple" else None))
+                jobs.append((i, p, segments[i]))
         results = self.evaluator.map(jobs)
         n = len(self.spec.experiments)
         return [results[k * n : (k + 1) * n] for k in range(len(points))]
@@ -152,8 +188,16 @@ class Problem:
                     self.failures.append({"experiment": e.name, "status": res.status, "message": res.message})
         return np.concatenate(parts)
 
-    def residuals(self, points: list, shooting: str) -> list:
-        return [self.residual(r) for r in self.runs(points, shooting)]
+    def residuals(self, points: list, segment: float | None = None) -> list:
+        return [self.residual(r) for r in self.runs(points, segment)]
+
+    def cost(self, z) -> float:
+        """The single-shooting cost ½Σr² at z (inf where a run failed)."""
+        runs = self.runs([z])[0]
+        if Problem.failed(runs):
+            return float("inf")
+        r = self.residual(runs)
+        return 0.5 * float(r @ r)
 
     @staticmethod
     def failed(results: list) -> bool:

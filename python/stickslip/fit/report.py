@@ -90,21 +90,51 @@ def report_md(result: dict, spec, figures: list) -> str:
         f"{m['shooting']} shooting, loss `{m['loss']}`; {result['n_evaluations']} FMU runs in "
         f"{result['wall_s']:.1f} s; {'converged' if result['converged'] else 'NOT converged'}.",
         "",
-        "| parameter | estimate | standard error | relative | initial | bounds | at bound |",
-        "|---|---|---|---|---|---|---|",
+        f"**Verdict: {result['verdict']}.**",
+        "",
+        "| parameter | estimate | standard error | relative | classical / sandwich SE | 95 % profile interval "
+        "| initial | bounds | at bound |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, p in result["parameters"].items():
         rel = p["std_error"] / abs(p["value"]) if p["value"] else math.inf
+        prof = p.get("profile")
+        interval = f"[{prof['interval_95'][0]:.6g}, {prof['interval_95'][1]:.6g}]" if prof else "– (quadratic)"
         lines.append(
-            f"| `{name}` | {p['value']:.8g} | {p['std_error']:.3g} | {rel:.2e} | {p['initial']:.6g} | "
+            f"| `{name}` | {p['value']:.8g} | {p['std_error']:.3g} | {rel:.2e} | "
+            f"{p['std_error_classical']:.3g} / {p['std_error_sandwich']:.3g} | {interval} | {p['initial']:.6g} | "
             f"[{p['bounds'][0]:g}, {p['bounds'][1]:g}] | {'yes' if p['at_bound'] else 'no'} |"
         )
+    lines += [
+        "",
+        "The standard error is the largest of the classical σ̂²(JᵀJ)⁻¹ one, the sandwich one (residuals "
+        "correlated in time) and, for a profiled parameter, the profile interval's half-width / 1.96.",
+    ]
     lines += [
         "",
         f"Cost {result['cost']:.6g}; rms normalized residual {result['rms_normalized_residual']:.4g} "
         "(1 when the residuals are the stated noise).",
     ]
     lines += ["", "Residual rms per channel: " + ", ".join(f"`{k}` {v:.3g}" for k, v in result["residual_rms"].items())]
+    gof = result["goodness_of_fit"]
+    lines += [
+        "",
+        "## Goodness of fit",
+        "",
+        f"χ² = {gof['chi_square']:.6g} for {gof['degrees_of_freedom']} degrees of freedom (reduced "
+        f"{gof['reduced_chi_square']:.4g}, p = {gof['p_value']:.2g}), with each channel's σ = sqrt(sigma² + "
+        "resolution²/12). Per channel: the residual variance in units of that σ, its white part "
+        "(mean(Δr²)/2, sample-to-sample noise) and slow part (the rest: structure, or an encoder's rounding "
+        "held through a stiction phase, up to the allowance).",
+        "",
+        "| channel | samples | variance | white | slow | allowance | lag-1 autocorrelation | χ² p |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, c in gof["channels"].items():
+        lines.append(
+            f"| `{name}` | {c['n']} | {c['variance']:.4g} | {c['white']:.4g} | {c['slow']:.3g} | "
+            f"{c['allowance']:.3g} | {c['rho']:.3f} | {c['p_value']:.2g} |"
+        )
     lines += ["", "## Warnings", ""]
     lines += [f"- {w}" for w in result["warnings"]] or ["none"]
     names = result["correlation"]["names"]
@@ -117,17 +147,43 @@ def report_md(result: dict, spec, figures: list) -> str:
     ]
     for n, row in zip(names, result["correlation"]["matrix"], strict=True):
         lines.append(f"| `{n}` | " + " | ".join(_corr(c) for c in row) + " |")
-    lines += ["", "## Starts", "", "| start | cost (multiple shooting) | cost | status |", "|---|---|---|---|"]
+    lines += [
+        "",
+        "## Starts",
+        "",
+        "Single-shooting cost at each start, after the multiple-shooting continuation, and at its end "
+        "(single shooting goes on from the better of the first two).",
+        "",
+        "| start | cost at start | last multiple-shooting stage | after continuation | cost | status |",
+        "|---|---|---|---|---|---|",
+    ]
+
+    def number(x):
+        return f"{x:.6g}" if x is not None else "–"
+
     for s in result["starts"]:
-        ms = f"{s['multiple_shooting_cost']:.6g}" if s["multiple_shooting_cost"] is not None else "–"
-        cost = f"{s['cost']:.6g}" if s["cost"] is not None else "–"
-        lines.append(f"| {s['origin']} | {ms} | {cost} | {s['status']} |")
+        lines.append(
+            f"| {s['origin']} | {number(s.get('cost_at_start'))} | {number(s['multiple_shooting_cost'])} | "
+            f"{number(s.get('cost_after_continuation'))} | {number(s['cost'])} | {s['status']} |"
+        )
     lines += ["", "## Method", ""]
     lines += [f"- {note}" for note in m["equation_error_stage"]]
     lines.append(
         f"- Jacobian: forward differences of step {m['diff_step']:g} (of each normalized range); with a 3x step "
         f"the standard errors change by at most {100 * m['std_error_change_with_3x_step']:.1f} %."
     )
+    for check in m["error_tolerance_checks"]:
+        lines.append(
+            f"- error_tolerance {check['error_tolerance']:g}: a Gauss-Newton step at a tenfold tighter tolerance moves "
+            f"the estimates by up to {check['shift_at_tenfold_tighter_se']:.2g} standard errors"
+            + ("; refitted there" if check.get("refitted") else "")
+        )
+    for name, noise in m["noise"].items():
+        if noise["resolution"]:
+            how = "detected from the samples' levels" if noise["resolution_detected"] else "given"
+            lines.append(
+                f"- `{name}`: encoder resolution {noise['resolution']:.6g} ({how}), sigma {noise['sigma']:.3g}"
+            )
     lines.append(
         f"- Noise scale σ̂² = {m['sigma_scale']:.4g} "
         + ("(absolute sigmas: 1)" if m["absolute_sigma"] else "(from the residuals; the sigmas are relative)")
@@ -178,7 +234,7 @@ def _plots(result: dict, spec, out: Path) -> list:
             ax.plot(e.time, base - res.values[:, k], lw=1.0, color="C0", label=f"fitted {c.output}")
             ax.set_ylabel(f"q_star{joint} − {c.output}" if lag else c.output)
             ax.legend(loc="best", fontsize=8)
-            axr.plot(e.time, (res.values[:, k] - c.values) / c.sigma, lw=0.6, color="C3")
+            axr.plot(e.time, (res.values[:, k] - c.values) / c.std, lw=0.6, color="C3")
             axr.axhline(0, color="0.5", lw=0.5)
             axr.set_ylabel(f"({c.output} − meas.)/σ")
             if joint and f"stick{joint}" in sticks:

@@ -13,7 +13,8 @@
     # motion = "motion.toml"                      # instead of inputs: a motion file (docs/motion.md)
     parameters = { "m[3]" = 8.0 }                 # known values for this experiment
     [experiment.measured]                         # FMU output <- column, with the measurement's noise
-    "q[1]" = { column = "link1", sigma = 2e-6 }
+    "q[1]" = { column = "link1", sigma = 2e-6 }   # resolution = 1.5e-6: the encoder's count (default
+                                                  # "auto": detected where the samples lie on a grid)
     [estimate]                                    # tunable FMU parameters to estimate
     "mu_k[1]" = { initial = 0.15, bounds = [0.05, 0.4] }
     "k[3]" = { initial = 8e5, bounds = [1e5, 5e6], scale = "log" }
@@ -74,14 +75,48 @@ class FitSpecError(ValueError):
     """A fit SPEC or data file that cannot be used; the message names the field and the problem."""
 
 
+CHANNEL_KEYS = ("column", "sigma", "resolution")
+
+
 @dataclass
 class Channel:
-    """One measured channel: the FMU output, the data column, the noise's standard deviation."""
+    """One measured channel: the FMU output, the data column, the noise's standard deviation
+    ``sigma`` and the encoder's quantum ``resolution`` (0: none; given, or detected from the
+    samples' levels when the SPEC says ``resolution = "auto"`` or nothing)."""
 
     output: str
     column: str
     sigma: float
     values: np.ndarray = field(repr=False, default=None)
+    resolution: float = 0.0
+    resolution_detected: bool = False
+
+    @property
+    def std(self) -> float:
+        """The standard deviation of a sample's error: the noise and the rounding to the
+        encoder's count, sqrt(sigma² + resolution²/12) (a uniform error over one count)."""
+        return math.sqrt(self.sigma**2 + self.resolution**2 / 12.0)
+
+
+def detect_resolution(values) -> float:
+    """The quantum q of samples that all lie on a grid x0 + n q (an encoder's count), or 0.
+    q is the smallest step between two distinct levels; every other step must be a whole
+    multiple of it (to 1e-6 of q), and the grid must hold at least one repeated level, as
+    an encoder's samples do wherever the link is still."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    levels = np.unique(x)
+    if len(levels) < 2 or len(levels) == len(x):
+        return 0.0
+    steps = np.diff(levels)
+    q = float(steps.min())
+    scale = max(float(np.max(np.abs(levels))), q)
+    if not q > 1e-12 * scale:
+        return 0.0
+    n = steps / q
+    if np.max(np.abs(n - np.round(n))) > 1e-6 + 1e-9 * scale / q:
+        return 0.0
+    return q
 
 
 @dataclass
@@ -386,7 +421,7 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
                 f"{where}: measured.{output!r}: not an output of the FMU" + (f" (close: {close})" if close else "")
             )
         entry = _table(entry, f"{where}: measured.{output!r}")
-        _unknown(entry, ("column", "sigma"), f"{where}: measured.{output!r}")
+        _unknown(entry, CHANNEL_KEYS, f"{where}: measured.{output!r}")
         if "column" not in entry or "sigma" not in entry:
             raise FitSpecError(
                 f'{where}: measured.{output!r}: needs `column` and `sigma`, e.g. {{ column = "link1", sigma = 1e-6 }}'
@@ -395,7 +430,15 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
         sigma = _number(entry["sigma"], f"{where}: measured.{output!r}.sigma")
         if sigma <= 0:
             raise FitSpecError(f"{where}: measured.{output!r}.sigma = {sigma:g}: must be > 0")
-        channels.append(Channel(output, str(entry["column"]), sigma))
+        resolution = entry.get("resolution", "auto")
+        if resolution != "auto":
+            resolution = _number(resolution, f"{where}: measured.{output!r}.resolution")
+            if resolution < 0:
+                raise FitSpecError(
+                    f'{where}: measured.{output!r}.resolution = {resolution:g}: must be >= 0 (0: none, "auto": '
+                    "detected from the samples)"
+                )
+        channels.append(Channel(output, str(entry["column"]), sigma, resolution=resolution))
         needed[str(entry["column"])] = f"measured {output}"
     for column, role in needed.items():
         if column not in table:
@@ -432,6 +475,9 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
         )
     for c in channels:
         c.values = table[c.column]
+        if c.resolution == "auto":
+            c.resolution = detect_resolution(c.values)
+            c.resolution_detected = c.resolution > 0
     (motion, torques), motion_file = _motion(raw, inputs, table, t, md, where, base)
     return Experiment(name, data_path, t, motion, torques, dict(inputs), parameters, channels, dropped, motion_file)
 

@@ -1,0 +1,150 @@
+"""Profile-likelihood intervals for the parameters whose cost is not quadratic.
+
+A standard error describes a cost that is a parabola in the parameter. Stick-slip's is
+often not: μ_s decides only when a stuck joint breaks away, so the cost rises steeply on one
+side (breakaways that come too early) and barely on the other. For such a parameter θ_j the
+95 % interval is where the profile cost — the cost with θ_j held and every other parameter
+re-optimized — stays within Δ* = ½ χ²₁(0.95) σ̂² c of the minimum, c = (SE_sandwich/SE)²
+(≥ 1) the inflation that correlated residuals give the likelihood ratio (the adjusted
+profile likelihood of composite-likelihood inference).
+
+The profile is followed from the optimum along the profile path of the quadratic model,
+θ(δ) = θ̂ + δ · C[:, j] / C[j, j] (C = (JᵀJ)⁻¹: the conditional optimum of the others for
+θ_j = θ̂_j + δ), and at every point the others get one Gauss-Newton step on the point's own
+residuals with the optimum's J, so the FMU runs two experiments' worth per point, never a
+fit. A parameter is profiled when it is a static friction coefficient μ_s, or when the cost
+at ±2 standard errors along the path departs from the parabola's 2σ̂² by more than a factor
+of two. The interval's half-width, divided by 1.96, stands as the parameter's standard
+error where it is the larger (fit.json keeps both).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .problem import Problem
+
+QUADRATIC = (0.5, 2.0)  # a cost ratio (actual / parabola) at ±2 SE outside this is not quadratic
+BISECTIONS = 4
+MAX_DOUBLINGS = 5
+
+
+def _evaluate(problem: Problem, points: list) -> list:
+    """(cost, residual) of single shooting at each θ (inf where a run failed)."""
+    zs = [problem.transform.z(theta) for theta in points]
+    out = []
+    for runs in problem.runs(zs):
+        if Problem.failed(runs):
+            out.append((math.inf, None))
+        else:
+            r = problem.residual(runs)
+            out.append((0.5 * float(r @ r), r))
+    return out
+
+
+def _project(problem: Problem, theta) -> np.ndarray:
+    """θ clipped into its bounds as the transform sees it."""
+    return problem.transform.theta(problem.transform.z(theta))
+
+
+def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float) -> dict:
+    """{j: actual/parabola cost ratio at θ̂ ± 2 SE along the profile path (the smaller of the two)}."""
+    p = len(theta)
+    points, index = [], []
+    for j in range(p):
+        if not (math.isfinite(se[j]) and se[j] > 0 and C[j, j] > 0):
+            continue
+        path = C[:, j] / C[j, j]
+        for side in (-1.0, 1.0):
+            points.append(_project(problem, theta + side * 2.0 * se[j] * path))
+            index.append(j)
+    ratios = {}
+    for j, (cost, _) in zip(index, _evaluate(problem, points), strict=True):
+        ratio = (cost - cost0) / (2.0 * scale)  # the parabola: ½ (2 SE)²/SE² σ̂²
+        ratios[j] = min(ratios.get(j, math.inf), ratio)
+    return ratios
+
+
+def profile_interval(problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float) -> dict:
+    """The 95 % profile interval of θ_j: walk each side in doubling steps of one SE until
+    the profile cost passes ``threshold`` above ``cost0`` (or a bound stops it), then bisect."""
+    est = problem.spec.estimates[j]
+    path = C[:, j] / C[j, j]
+    others = [k for k in range(len(theta)) if k != j]
+    Jo = J[:, others]
+    lstsq = np.linalg.pinv(Jo)
+    runs = 0
+
+    def profile_cost(delta: float) -> float:
+        nonlocal runs
+        base = _project(problem, theta + delta * path)
+        ((cost, r),) = _evaluate(problem, [base])
+        runs += 1
+        if r is None:
+            return math.inf
+        step = np.zeros_like(theta)
+        step[others] = -lstsq @ r
+        moved = _project(problem, base + step)
+        moved[j] = base[j]
+        ((cost2, _),) = _evaluate(problem, [moved])
+        runs += 1
+        return min(cost, cost2)
+
+    ends = []
+    for side in (-1.0, 1.0):
+        limit = (est.low - theta[j]) if side < 0 else (est.high - theta[j])
+        inside, outside, bounded = 0.0, None, False
+        delta = se_j
+        for _ in range(MAX_DOUBLINGS):
+            if abs(delta) >= abs(limit):
+                delta, bounded = abs(limit), True
+            if profile_cost(side * delta) - cost0 > threshold:
+                outside = delta
+                break
+            inside = delta
+            if bounded:
+                break
+            delta *= 2.0
+        if outside is None:
+            ends.append((theta[j] + side * inside, not bounded))
+            continue
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (inside + outside)
+            if profile_cost(side * mid) - cost0 > threshold:
+                outside = mid
+            else:
+                inside = mid
+        ends.append((theta[j] + side * 0.5 * (inside + outside), False))
+    (low, low_open), (high, high_open) = ends
+    return {
+        "interval_95": [float(low), float(high)],
+        "open": [bool(low_open), bool(high_open)],  # the walk ended before the cost passed the threshold
+        "std_error_profile": float(max(theta[j] - low, high - theta[j]) / 1.96),
+        "runs": runs,
+    }
+
+
+def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float) -> dict:
+    """The profile of every parameter that is a μ_s or whose cost is not quadratic."""
+    from scipy.stats import chi2
+
+    names = [e.name for e in problem.spec.estimates]
+    C = np.linalg.pinv(J.T @ J)
+    ratios = quadratic_check(problem, theta, cost0, C, unc.std_error_classical, scale)
+    out = {}
+    for j, name in enumerate(names):
+        ratio = ratios.get(j, math.nan)
+        quadratic = QUADRATIC[0] <= ratio <= QUADRATIC[1]
+        if quadratic and not name.startswith("mu_s["):
+            continue
+        if not (math.isfinite(unc.std_error[j]) and unc.std_error[j] > 0):
+            continue
+        inflation = max(1.0, (unc.std_error_sandwich[j] / unc.std_error_classical[j]) ** 2)
+        threshold = 0.5 * float(chi2.ppf(0.95, 1)) * scale * inflation
+        entry = profile_interval(problem, theta, cost0, J, C, j, float(unc.std_error[j]), threshold)
+        entry["cost_ratio_at_2se"] = float(ratio) if math.isfinite(ratio) else None
+        entry["quadratic"] = bool(quadratic)
+        out[name] = entry
+    return out
