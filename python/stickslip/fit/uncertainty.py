@@ -10,9 +10,9 @@ channel's standard deviation: noise and encoder rounding, ``Channel.std``):
   weights 1 − l/(L+1). It holds when the residuals are correlated in time: a quantized
   encoder reads the same count through a stiction phase, so its error is one constant per
   phase, and the FMU's error control adds a smooth model error of its own. The lag window L
-  of each series follows Andrews (1991) for an AR(1) fitted to its residuals, at most a
-  fifth of the series (at an optimum Σ g_t = 0, so a window as long as the series would
-  cancel the very covariance it measures).
+  of each series is twice the lag at which its residuals' autocorrelation falls to the
+  noise level (:func:`bartlett_window`), at most a fifth of the series (at an optimum
+  Σ g_t = 0, so a window as long as the series would cancel the very covariance it measures).
 
 Why the sandwich and not a bootstrap: it costs no FMU run (J is there already), and a
 moving-block bootstrap that refits each resample would cost hundreds of fits; one that does
@@ -91,14 +91,27 @@ def uncertainty(J, r, blocks: list, names: list, absolute_sigma: bool, weights=N
 
 
 def bartlett_window(r) -> int:
-    """Andrews' (1991) lag window for Bartlett weights, from the lag-1 autocorrelation ρ of
-    the series: 1.1447 (4ρ² n / ((1 − ρ)²(1 + ρ)²))^(1/3), at most n/5."""
+    """The lag window for Bartlett weights: twice the first lag at which the sample
+    autocorrelation of the series falls to its noise level (max(2/sqrt(n), 0.05)), at most
+    n/5. An error held constant through phases of B samples (a quantized encoder while the
+    link sticks) has an autocorrelation falling linearly to 0 at B, and the window must reach
+    past B for the weights to count most of it; an AR(1) plug-in (Andrews, 1991) sees only
+    its first lag and stops far short of B."""
+    r = np.asarray(r, dtype=np.float64)
     n = len(r)
-    rho = min(lag1_autocorrelation(r), 0.999)
-    if n < 3 or rho <= 0:
+    if n < 3:
         return 0
-    alpha = 4.0 * rho**2 / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2)
-    return int(min(math.ceil(1.1447 * (alpha * n) ** (1.0 / 3.0)), n // 5))
+    d = r - r.mean()
+    variance = float(d @ d)
+    if variance <= 0:
+        return 0
+    floor = max(2.0 / math.sqrt(n), 0.05)
+    cap = n // 5
+    spectrum = np.fft.rfft(d, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[: cap + 1] / variance
+    below = np.flatnonzero(acf[1:] < floor)
+    first = int(below[0]) + 1 if len(below) else cap
+    return int(min(2 * (first - 1), cap))
 
 
 def long_run_covariance(J, r, blocks: list) -> tuple:
