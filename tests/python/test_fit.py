@@ -278,6 +278,40 @@ def test_multi_start_finds_the_minimum_a_poor_start_misses(tmp_path):
     assert abs(p["value"] - 0.17) <= 3 * p["std_error"], p
 
 
+@pytest.mark.full
+def test_a_fit_stuck_in_a_wrong_minimum_says_so(tmp_path):
+    """The poor start of the test above alone (0.13 for 0.17, single shooting, one start):
+    it ends in the minimum near 0.13, more than 20 times the noise floor. The result must
+    not pass as an answer: ``trusted`` is false, the verdict says NOT TRUSTED, and a
+    warning names a channel whose residuals the noise model does not explain and says what
+    it may mean."""
+    data = fc.write_data(tmp_path / "run.csv", fc.measured(0.7, seed=1))
+    spec = fc.spec(
+        fc.experiment(data),
+        ["mu_k[1]"],
+        {"mu_k[1]": 0.13},
+        {"mu_k[1]": (0.12, 0.20)},
+        shooting="single",
+        max_evaluations=30,
+    )
+    r = _fit(spec)
+    assert r["cost"] > 20 * _noise_floor(r)
+    assert r["trusted"] is False and r["verdict"].startswith("NOT TRUSTED: misfit in q["), r["verdict"]
+    misfit = [w for w in r["warnings"] if w.startswith("misfit in q[")]
+    assert misfit and "local minimum" in misfit[0], r["warnings"]
+
+
+@pytest.mark.full
+def test_a_parameter_held_at_a_wrong_value_is_a_misfit_of_its_channel(tmp_path):
+    """The data made with μ_k[3] = 0.2; the SPEC holds it at 0.16 and estimates μ_k[1] only:
+    joint 3's lag cannot be followed, whatever μ_k[1] is. The warning names q[3]."""
+    data = fc.write_data(tmp_path / "run.csv", fc.measured(0.5, seed=2))
+    spec = fc.spec(fc.experiment(data, parameters={"mu_k[3]": 0.16}), ["mu_k[1]"], shooting="single")
+    r = _fit(spec)
+    assert r["trusted"] is False, r["verdict"]
+    assert any(w.startswith("misfit in q[3]") for w in r["warnings"]), r["warnings"]
+
+
 @pytest.fixture(scope="module")
 def two_experiments(tmp_path_factory):
     """Two runs of the reference motion with different payloads of the sliding link, m[3] = 8
@@ -410,6 +444,10 @@ def test_result_files_and_fit_json_schema(small_fit):
     spec, out, result = small_fit
     doc = json.loads((out / "fit.json").read_text())
     assert SCHEMA_TOP <= set(doc), SCHEMA_TOP - set(doc)
+    # A fit at the noise floor: trusted, its goodness of fit per channel in fit.json.
+    assert doc["trusted"] is True and doc["verdict"].startswith("the residuals are what the noise model says")
+    assert set(doc["goodness_of_fit"]["channels"]) == {"q[1]", "q[3]"}
+    assert doc["goodness_of_fit"]["p_value"] > 1e-3
     names = ["mu_k[1]", "k[3]"]
     assert list(doc["parameters"]) == names
     given = tomllib.loads(spec.read_text())["estimate"]

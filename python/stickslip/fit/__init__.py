@@ -29,7 +29,7 @@ import numpy as np
 
 from ..motion import motor_joints
 from .problem import Evaluator, Problem, payload_of
-from .solve import StartResult, jacobian, latin_hypercube, local_fit, run_starts, segment_lengths
+from .solve import StartResult, jacobian, latin_hypercube, refine, run_starts, segment_lengths
 from .spec import FitSpec, FitSpecError, load
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
@@ -112,14 +112,7 @@ def fit(
             + "single shooting"
         )
 
-        def start_done(s):
-            ms = f", multiple shooting {s.ms_cost:.6g}" if s.ms_cost is not None else ""
-            say(
-                f"fit: start {s.origin!r}: cost {s.cost:.6g} (at its start {s.start_cost:.6g}{ms}), "
-                f"{s.status}; {evaluator.runs} FMU runs, {time.perf_counter() - t0:.0f} s"
-            )
-
-        results = run_starts(problem, starts, multiple, spec.options, threads, start_done)
+        results = run_starts(problem, starts, multiple, spec.options, threads, say)
         finite = [s for s in results if math.isfinite(s.cost) and s.z is not None]
         if not finite:
             raise FitError("no start reached a finite cost: " + "; ".join(s.message for s in results))
@@ -203,7 +196,8 @@ def _at_optimum(problem: Problem, z, options: dict) -> Optimum:
 def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -> tuple:
     """(problem, optimum, record): the answer at an error_tolerance the estimates no longer
     notice. A tenfold tighter tolerance gets one Gauss-Newton step from the answer; where it
-    moves an estimate by more than SHIFT_LIMIT standard errors, or the standard errors move
+    moves an estimate by more than SHIFT_LIMIT standard errors from where the step at this
+    tolerance would, or the standard errors move
     by more than SE_STEP_CHANGE with a 3x Jacobian step, the fit goes on from the answer at
     the tighter tolerance, and the check is repeated there."""
     default = _fmu_tolerance(problem.spec)
@@ -216,7 +210,11 @@ def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -
         r = tighter.residuals([opt.z])[0]
         Jz, _ = jacobian(tighter, opt.z, r, None, options["diff_step"])
         J = Jz @ np.linalg.inv(problem.transform.jacobian(opt.z))
-        step = -np.linalg.lstsq(J, r, rcond=None)[0]
+        # Where the answer would go at the tighter tolerance, against where it would go at this
+        # one: a trust region stops short of the exact minimum of a cost this rough, so the
+        # Gauss-Newton step at the same tolerance is not zero, and only the difference is the
+        # FMU's numerical error.
+        step = np.linalg.lstsq(opt.J, opt.r, rcond=None)[0] - np.linalg.lstsq(J, r, rcond=None)[0]
         with np.errstate(invalid="ignore", divide="ignore"):
             shift = np.abs(step) / opt.unc.std_error
         shift = float(np.nanmax(np.where(np.isfinite(shift), shift, np.nan))) if np.any(np.isfinite(shift)) else 0.0
@@ -232,7 +230,7 @@ def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -
             f"fit: at error_tolerance {tol:g} the estimates move by {shift:.2g} standard errors at a tenfold tighter "
             f"one (standard errors {100 * opt.se_change:.0f} % with a 3x Jacobian step): refitting at {tol / 10:g}"
         )
-        res, _ = local_fit(tighter, opt.z, None, options)
+        res, _ = refine(tighter, opt.z, options)
         problem = tighter
         opt = _at_optimum(problem, res.x, options)
         entry["refitted"] = True
@@ -250,9 +248,10 @@ def _summarize(
     spec, problem: Problem, best: StartResult, results: list, multiple: bool, notes: list, evaluator, t0: float, say
 ) -> dict:
     from .profile import profiles
-    from .uncertainty import goodness_of_fit, misfit_warnings
+    from .uncertainty import LEVEL, goodness_of_fit, misfit_warnings
 
-    options = spec.options
+    # The Jacobian of the uncertainty takes the step single shooting ended with.
+    options = dict(spec.options, diff_step=best.step or spec.options["diff_step"])
     transform = problem.transform
     opt = _at_optimum(problem, best.z, options)
     problem, opt, tightening = _numerically_converged(problem, opt, options, say)
@@ -363,8 +362,14 @@ def _summarize(
         verdict = "NOT TRUSTED: " + misfit[0].split(":")[0] + " — the model does not follow the data (see the warnings)"
     elif similar:
         verdict = "NOT UNIQUE: another start ended in a different minimum the data cannot reject"
-    else:
+    elif gof["p_value"] >= LEVEL:
         verdict = f"the residuals are what the noise model says (chi-square p = {gof['p_value']:.2g})"
+    else:
+        level = math.sqrt(gof["reduced_chi_square"])
+        verdict = (
+            f"no structure in the residuals beyond the noise, whose level is {level:.3g}× the stated one"
+            f" (reduced chi-square {gof['reduced_chi_square']:.4g}, p = {gof['p_value']:.2g})"
+        )
     return {
         "trusted": trusted,
         "verdict": verdict,

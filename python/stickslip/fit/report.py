@@ -56,7 +56,8 @@ def fitted_toml(result: dict, spec) -> str:
     """The estimates as ``stickslip simulate --set`` values and as a [parameters] table; the
     fit's error_tolerance in [settings]; each experiment's known values in [known.<name>]."""
     values = {name: p["value"] for name, p in result["parameters"].items()}
-    settings = {} if spec.options["error_tolerance"] is None else {"error_tolerance": spec.options["error_tolerance"]}
+    tol = result["method"]["error_tolerance"]  # the SPEC's, or the tighter one the fit ended at
+    settings = {} if tol is None else {"error_tolerance": tol}
     lines = ["# The fitted parameters (stickslip fit). To rerun a fitted experiment:"]
     for e in spec.experiments:
         sets = " ".join(f"--set '{n}={_toml_value(v)}'" for n, v in {**settings, **e.parameters, **values}.items())
@@ -212,8 +213,8 @@ def _plots(result: dict, spec, out: Path) -> list:
     data = Path(spec.fmu).read_bytes()
     digest = content_hash(data)
     values = {n: p["value"] for n, p in result["parameters"].items()}
-    if spec.options["error_tolerance"] is not None:
-        values["error_tolerance"] = spec.options["error_tolerance"]
+    if result["method"]["error_tolerance"] is not None:
+        values["error_tolerance"] = result["method"]["error_tolerance"]
     md = spec.model_description
     sticks = [v.name for v in md.modelVariables if v.name.startswith("stick[") and v.causality == "output"]
     for e in spec.experiments:

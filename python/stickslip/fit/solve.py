@@ -31,6 +31,7 @@ run in threads of this process, so their runs fill the cluster together.
 from __future__ import annotations
 
 import math
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -48,6 +49,7 @@ class StartResult:
     ms_cost: float | None = None  # the last multiple-shooting stage's cost
     start_cost: float = math.inf  # the single-shooting cost at the start point
     continuation_cost: float | None = None  # … where the continuation ended
+    step: float | None = None  # the Jacobian step single shooting ended with
     nfev: int = 0
     status: str = ""
     message: str = ""
@@ -128,6 +130,39 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     return result, history
 
 
+# Single shooting's Jacobian steps, as fractions of ``diff_step``: coarse to fine.
+STEP_FACTORS = (1.0, 0.3, 0.1, 0.03)
+
+
+def refine(problem: Problem, z, options: dict, start=None, nfev: int = 0) -> tuple:
+    """Single shooting from z with a Jacobian step going from ``diff_step`` down by STEP_FACTORS
+    while each finer step still lowers the cost by more than ½ (implicit filtering, Kelley):
+    (the last OptimizeResult, evaluations so far).
+
+    A coarse difference smooths the cost's small-scale roughness far from the minimum, but
+    near it a step of 1e-3 of a range is hundreds of standard errors of a well-determined
+    parameter (k[3] of the calibration example: 2,500 N/m for a standard error of 4), so its
+    secant does not see the bowl the estimate lies in, and the trust region stops where
+    every step it tries fails: measured on the calibration example, cost 5361.5 with 1e-3
+    against 5278.1 after 3e-4 (the truth: 5287.8), every estimate moved to within 0.3 % of
+    the truth. Each stage starts where the last ended; the best stage's step is the one the
+    uncertainty's Jacobian takes (``res.step_factor``)."""
+    best = None
+    for factor in STEP_FACTORS:
+        step = factor * options["diff_step"]
+        res, hist = local_fit(problem, z if best is None else best.x, None, dict(options, diff_step=step))
+        nfev += res.nfev
+        if start is not None:
+            start.history += [(f"single, step {factor:g}", *h) for h in hist]
+        improved = best is None or res.cost < best.cost - 0.5
+        if best is None or res.cost < best.cost:
+            res.step_factor = factor
+            best = res
+        if not improved:
+            break
+    return best, nfev
+
+
 def segment_lengths(problem: Problem, first: float) -> list:
     """The continuation's segment lengths: ``first``, 3×, 9×, … while shorter than half the
     longest experiment (at least ``first``)."""
@@ -138,7 +173,11 @@ def segment_lengths(problem: Problem, first: float) -> list:
     return out
 
 
-def run_start(problem: Problem, start: StartResult, multiple: bool, options: dict, progress=None) -> StartResult:
+def run_start(problem: Problem, start: StartResult, multiple: bool, options: dict, say=None) -> StartResult:
+    """One start through the continuation and single shooting; ``say(line)`` reports each
+    stage as it ends."""
+    say = say or (lambda line: None)
+    t0 = time.perf_counter()
     z0 = problem.transform.z(list(start.initial.values()))
     z, nfev = z0, 0
     start.start_cost = problem.cost(z0)
@@ -148,30 +187,36 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
             z, nfev = res.x, nfev + res.nfev
             start.ms_cost = float(res.cost)
             start.history += [(f"multiple {length:g} s", *h) for h in hist]
+            say(
+                f"fit: start {start.origin!r}: multiple shooting, {length:g} s segments: cost {res.cost:.6g} "
+                f"({res.nfev} iterations, {time.perf_counter() - t0:.0f} s)"
+            )
         start.continuation_cost = problem.cost(z)
         if not start.continuation_cost <= start.start_cost:
             z = z0  # the continuation made the simulation error worse: single shooting from the start
-    res, hist = local_fit(problem, z, None, options)
-    start.history += [("single", *h) for h in hist]
-    start.z, start.cost, start.nfev = res.x, float(res.cost), nfev + res.nfev
+    res, nfev = refine(problem, z, options, start, nfev)
+    start.z, start.cost, start.nfev = res.x, float(res.cost), nfev
+    start.step = res.step_factor * options["diff_step"]
     start.status, start.message = ("converged" if res.status > 0 else "stopped"), res.message
     failed = [r for r in problem.runs([res.x])[0] if r.status != "ok"]
     if failed:
         # A start that ends where the FMU refuses or discards has no cost to compare.
         start.cost, start.status = math.inf, "failed"
         start.message = f"ended at a point whose run ended {failed[0].status}: {failed[0].message}"
-    if progress is not None:
-        progress(start)
+    after = f", after the continuation {start.continuation_cost:.6g}" if start.continuation_cost is not None else ""
+    say(
+        f"fit: start {start.origin!r}: cost {start.cost:.6g} (at its start {start.start_cost:.6g}{after}), "
+        f"{start.status}, {time.perf_counter() - t0:.0f} s"
+    )
     return start
 
 
-def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, threads: int, progress=None) -> list:
-    """Every start (in ``threads`` threads sharing the evaluator), results in the same order;
-    ``progress(start)`` is called as each ends."""
+def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, threads: int, say=None) -> list:
+    """Every start (in ``threads`` threads sharing the evaluator), results in the same order."""
     if threads <= 1 or len(starts) == 1:
-        return [run_start(problem, s, multiple, options, progress) for s in starts]
+        return [run_start(problem, s, multiple, options, say) for s in starts]
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(lambda s: run_start(problem, s, multiple, options, progress), starts))
+        return list(pool.map(lambda s: run_start(problem, s, multiple, options, say), starts))
 
 
 def latin_hypercube(p: int, n: int, seed: int) -> np.ndarray:
