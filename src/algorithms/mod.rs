@@ -3,6 +3,7 @@
 
 pub mod crba;
 pub mod energy;
+pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod lagrange;
 pub mod lu;

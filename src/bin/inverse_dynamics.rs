@@ -5,9 +5,7 @@
 //! Usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv [--set NAME[i]=VALUE ...]
 //!
 //! `--set` changes a tunable parameter of the model file by its FMU name
-//! (`m[3]`, `d_A[1]`, `mu_k[1]`, ...), checked as the FMU checks it; the fit's
-//! equation-error stage (python/stickslip/fit/idim.py) passes an experiment's
-//! known values so.
+//! (`m[3]`, `d_A[1]`, `mu_k[1]`, ...), checked as the FMU checks it.
 //!
 //! IN.csv has a header and the columns q[1..n], qd[1..n], qdd[1..n] (any
 //! order, named so). For each row OUT.csv has: `tau[i]` (the generalized
@@ -21,38 +19,23 @@
 //! `axial[i]` (F* of (3.17), N or N·m, the reaction along the joint axis,
 //! which equals `tau[i]`), all at full precision.
 //!
-//! `load` and `axial` come from the engine's own functions
-//! (`forces::friction::friction_loads` on the joint reactions of
-//! `algorithms::rnea`), as the stepper computes them at every iterate: with
-//! the measured q, q̇, q̈ they are the engine's for that state, whether the
-//! joint slips or sticks. The friction of a slipping joint is then
+//! `tau`, `load` and `axial` come from `algorithms::inverse_dynamics` (the
+//! engine's `friction_loads` on the joint reactions of `algorithms::rnea`, as
+//! the stepper computes them at every iterate), which the FMU library's
+//! `stickslip_inverse_dynamics` export also runs for the fit's
+//! equation-error stage (python/stickslip/fit/idim.py): the same numbers.
+//! With the measured q, q̇, q̈ they are the engine's for that state, whether
+//! the joint slips or sticks. The friction of a slipping joint is then
 //! μ(q̇)·L·sgn q̇ + b·q̇ and its drive force F^d = τ + F^f (3.9), (3.10); a
 //! stuck one can be held while |F^d − F*| ≤ μ_s·L (3.16).
 
 use std::io::Write;
 use stick_slip_manipulator::algorithms::crba::crba;
-use stick_slip_manipulator::algorithms::kinematics::{end_point, forward_kinematics};
-use stick_slip_manipulator::algorithms::rnea::{joint_reactions, rnea};
-use stick_slip_manipulator::forces::friction::friction_loads;
-use stick_slip_manipulator::model::Parameter;
+use stick_slip_manipulator::algorithms::inverse_dynamics::{inverse_dynamics, joint_friction_loads, with_settings};
+use stick_slip_manipulator::algorithms::kinematics::end_point;
 use stick_slip_manipulator::{Data, Model};
 
 const USAGE: &str = "usage: inverse_dynamics --model FILE --states IN.csv --out OUT.csv [--set NAME[i]=VALUE ...]";
-
-/// `--set NAME[i]=VALUE`: a tunable parameter by its FMU name (`mu_k[1]`, `m[3]`,
-/// `d_A[1]`, ...), checked against its range as the FMU checks it.
-fn set_parameter(model: &mut Model, set: &str) -> Result<(), String> {
-    let bad = || format!("--set {set:?}: expected NAME[i]=VALUE with a tunable parameter's FMU name");
-    let (name, value) = set.split_once('=').ok_or_else(bad)?;
-    let (stem, index) = name.trim().strip_suffix(']').and_then(|n| n.split_once('[')).ok_or_else(bad)?;
-    let parameter = Parameter::ALL.iter().copied().find(|p| p.name() == stem).ok_or_else(bad)?;
-    let joint: usize = index.parse().map_err(|_| bad())?;
-    let value: f64 = value.trim().parse().map_err(|_| bad())?;
-    if joint == 0 {
-        return Err(bad());
-    }
-    model.set_parameter(parameter, joint - 1, value).map_err(|e| format!("--set {set:?}: {e}"))
-}
 
 fn main() {
     if let Err(e) = run() {
@@ -75,11 +58,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             _ => return Err(format!("unknown argument {a} ({USAGE})").into()),
         }
     }
-    let mut model = Model::from_file(model_path.ok_or(USAGE)?)?;
-    for set in &sets {
-        set_parameter(&mut model, set)?;
-    }
-    model.validate()?;
+    let model = with_settings(Model::from_file(model_path.ok_or(USAGE)?)?, &sets).map_err(|e| format!("--set: {e}"))?;
     for warning in &model.warnings {
         eprintln!("inverse_dynamics: warning: {warning}");
     }
@@ -124,9 +103,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         };
         let v = columns.iter().map(|&c| value(c)).collect::<Result<Vec<f64>, _>>()?;
         let (q, qd, qdd) = (&v[..n], &v[n..2 * n], &v[2 * n..]);
-        forward_kinematics(&model, &mut data, q);
-        rnea(&model, &mut data, q, qd, qdd);
-        joint_reactions(&model, &mut data);
+        inverse_dynamics(&model, &mut data, q, qd, qdd);
         crba(&model, &mut data);
         let mut out: Vec<f64> = data.tau.clone();
         for (i, joint) in model.joints.iter().enumerate() {
@@ -135,13 +112,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
         out.extend(end_point(&model, &data).iter());
         out.extend(data.mass_matrix.transpose().iter());
-        let loads: Vec<_> = with_friction
-            .iter()
-            .map(|&i| {
-                let joint = &model.joints[i];
-                friction_loads(joint.friction.as_ref(), &data.reaction_force[i], &data.reaction_moment[i], data.tau[i])
-            })
-            .collect();
+        let loads: Vec<_> = with_friction.iter().filter_map(|&i| joint_friction_loads(&model, &data, i)).collect();
         out.extend(loads.iter().map(|l| l.lever_load));
         out.extend(loads.iter().map(|l| l.axial));
         writeln!(w, "{}", out.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(","))?;

@@ -216,6 +216,24 @@ impl Model {
         *slot = value;
         Ok(())
     }
+
+    /// Sets the parameter a `setting` `NAME[i]=VALUE` names by its FMU
+    /// variable name (`m[3]=8.0`, `mu_k[1]=0.2`; i the joint number, 1…n),
+    /// checked as [`Model::set_parameter`] checks it.
+    pub fn apply_setting(&mut self, setting: &str) -> Result<(), ModelError> {
+        let invalid = |reason: String| ModelError::Invalid { field: setting.to_string(), reason };
+        let form = || invalid("expected NAME[i]=VALUE, a parameter by its FMU name (`m[3]=8.0`)".into());
+        let (name, value) = setting.split_once('=').ok_or_else(form)?;
+        let (stem, index) = name.trim().strip_suffix(']').and_then(|n| n.split_once('[')).ok_or_else(form)?;
+        let parameter = Parameter::ALL.iter().copied().find(|p| p.name() == stem).ok_or_else(|| {
+            let names: Vec<&str> = Parameter::ALL.iter().map(|p| p.name()).collect();
+            invalid(format!("no parameter is named `{stem}` (the names: {})", names.join(", ")))
+        })?;
+        let joint = index.trim().parse::<usize>().ok().filter(|&i| i >= 1);
+        let joint = joint.ok_or_else(|| invalid(format!("`{index}` is not a joint number (1…{})", self.nq())))?;
+        let value = value.trim().parse::<f64>().map_err(|_| invalid(format!("`{}` is not a number", value.trim())))?;
+        self.set_parameter(parameter, joint - 1, value)
+    }
 }
 
 /// Where parameter `p` of joint `j` and the link it moves is stored.
