@@ -9,10 +9,11 @@
 # Why not `zig cc` as linker too: zig's Mach-O linker ignores
 # `-exported_symbols_list` (every Rust symbol, some 2,200, stays exported),
 # which ld64.lld honours. What the link does beyond rustc's arguments:
-#   * the export list rustc writes is cut to the `_fmi2` functions (the FMI 3.0
-#     library, an output named *fmi3*: the `_fmi3` ones): rustc lists every
+#   * the export list rustc writes is cut to the `_fmi2` functions and the one
+#     beyond FMI, `_stickslip_inverse_dynamics` (the FMI 3.0 library, an
+#     output named *fmi3*: the `_fmi3` ones only): rustc lists every
 #     `#[no_mangle]` function of every crate, so fmi-sys's `callback_log`
-#     would be a 35th export (mingw-link.sh does the same for win64);
+#     would be exported too (mingw-link.sh does the same for win64);
 #   * `-install_name @rpath/StickSlipManipulator.dylib`, not the build path;
 #   * `-platform_version macos MIN <sdk>`: the minimum macOS of the
 #     architecture, DARWIN64_MIN_MACOS_X86_64 / _ARM64 (10.13 for x86_64,
@@ -55,10 +56,10 @@ done
 # The FMI version whose functions the library exports: the FMI 3.0 library
 # (crate fmi3/, libstick_slip_manipulator_fmi3.dylib) links the FMI 2.0
 # crate as an rlib, whose fmi2 functions rustc would list too.
-version=fmi2
+version=fmi2 keep="_fmi2|_stickslip_inverse_dynamics"
 for ((i = 0; i + 1 < ${#flat[@]}; i++)); do
     if [ "${flat[$i]}" = -o ]; then
-        case "$(basename "${flat[$((i + 1))]}")" in *fmi3*) version=fmi3 ;; esac
+        case "$(basename "${flat[$((i + 1))]}")" in *fmi3*) version=fmi3 keep=_fmi3 ;; esac
     fi
 done
 i=0
@@ -70,7 +71,7 @@ while [ "$i" -lt "${#flat[@]}" ]; do
         -exported_symbols_list)
             i=$((i + 1)); list="${flat[$i]}"
             cut="$list.$version"
-            grep -E "^[[:space:]]*_$version" "$list" >"$cut" || true
+            grep -E "^[[:space:]]*($keep)" "$list" >"$cut" || true
             args+=(-exported_symbols_list "$cut"); exports=1 ;;
         *) args+=("$p") ;;
     esac

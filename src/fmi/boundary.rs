@@ -1,7 +1,9 @@
-//! The C boundary: opaque handles, checked pointer helpers, and the one
-//! wrapper every exported function body runs in. A panic never crosses into
-//! C (since Rust 1.81 it would abort the master): it becomes fmi2Error and
-//! puts the instance in the error state.
+//! The C boundary: opaque handles, checked pointer helpers, and the
+//! wrappers every exported function body runs in. A panic never crosses into
+//! C (since Rust 1.81 it would abort the master): in an FMI function it
+//! becomes fmi2Error and puts the instance in the error state
+//! ([`with_instance`]); in the one function beyond FMI, which has no
+//! instance, an error status with the panic's message ([`catch`]).
 
 use super::instance::Instance;
 use super::lifecycle::States;
@@ -214,4 +216,33 @@ pub(crate) unsafe fn text<'a>(p: *const c_char, what: &str) -> Result<&'a str, F
     }
     // SAFETY: non-null and NUL-terminated by contract.
     unsafe { CStr::from_ptr(p) }.to_str().map_err(|_| Fault::error(format!("`{what}` is not UTF-8")))
+}
+
+/// Runs `body`, an exported function that has no instance (the library's
+/// function beyond FMI 2.0): a panic becomes an error with its message.
+pub(crate) fn catch(body: impl FnOnce() -> Result<(), Fault>) -> Result<(), Fault> {
+    catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|payload| {
+        Err(Fault::error(format!("internal error (please report): {}", panic_message(payload.as_ref()))))
+    })
+}
+
+/// Writes `message` NUL-terminated into the caller's buffer `p[0..size]`,
+/// cut at a character boundary where it does not fit; with `size` = 0
+/// nothing is written and the pointer is not looked at.
+///
+/// # Safety
+/// As for [`slice_mut`] with `size` bytes.
+pub(crate) unsafe fn write_text(p: *mut c_char, size: usize, message: &str, what: &str) -> Result<(), Fault> {
+    // SAFETY: see the function's contract.
+    let bytes = unsafe { slice_mut(p.cast::<u8>(), size, what) }?;
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    let mut cut = message.len().min(bytes.len() - 1);
+    while !message.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    bytes[..cut].copy_from_slice(&message.as_bytes()[..cut]);
+    bytes[cut] = 0;
+    Ok(())
 }

@@ -1,6 +1,9 @@
 //! The 34 exported functions of FMI 2.0 (common + co-simulation). Each one
 //! names the life-cycle states that allow it and hands checked arguments to
-//! [`Instance`]; nothing else is exported from the library.
+//! [`Instance`]. Beside them one function beyond FMI, which an FMI master
+//! never calls: [`stickslip_inverse_dynamics`], the engine's inverse
+//! dynamics for the fit's equation-error stage; nothing else is exported
+//! from the library.
 //!
 //! Beyond FMI 2.0, which leaves the slave's behaviour there open,
 //! fmi2DoStep, fmi2SetReal, fmi2SetBoolean and fmi2SetRealInputDerivatives
@@ -12,7 +15,8 @@
 #![allow(non_snake_case, non_upper_case_globals)]
 
 use super::boundary::{
-    free_component, free_state, guard, into_component, into_state, out, slice, slice_mut, state, text, with_instance,
+    catch, free_component, free_state, guard, into_component, into_state, out, slice, slice_mut, state, text,
+    with_instance, write_text,
 };
 use super::description::MODEL_IDENTIFIER;
 use super::instance::Instance;
@@ -20,9 +24,11 @@ use super::lifecycle::{LifeCycle::*, States};
 use super::logger::{Category, Logger};
 use super::status::{Fault, Status};
 use super::uri::resource_path;
+use crate::algorithms::inverse_dynamics::{inverse_dynamics_rows, with_settings};
 use crate::model::{Model, ModelSource};
+use crate::Data;
 use fmi_sys::fmi2::*;
-use std::ffi::{c_char, CString};
+use std::ffi::{c_char, c_int, CString};
 
 const ANY: States = States::of(&[Instantiated, InitializationMode, StepComplete, StepFailed, Terminated, Error]);
 const SET: States = States::of(&[Instantiated, InitializationMode, StepComplete, StepFailed]);
@@ -67,8 +73,9 @@ const _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
 const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
 const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
 
-/// The names of the exported functions (the library's whole symbol table).
-pub const EXPORTED_FUNCTIONS: [&str; 34] = [
+/// The names of the exported functions (the library's whole symbol table):
+/// the 34 of FMI 2.0, then the one beyond it.
+pub const EXPORTED_FUNCTIONS: [&str; 35] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
     "fmi2SetDebugLogging",
@@ -103,6 +110,7 @@ pub const EXPORTED_FUNCTIONS: [&str; 34] = [
     "fmi2GetIntegerStatus",
     "fmi2GetBooleanStatus",
     "fmi2GetStringStatus",
+    "stickslip_inverse_dynamics",
 ];
 
 // ---- functions without an instance ------------------------------------------------
@@ -737,4 +745,96 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     _value: *mut fmi2String,
 ) -> fmi2Status {
     unsafe { with_instance(c, "fmi2GetStringStatus", STATUS, |_| Err(no_status(s))) }
+}
+
+// ---- beyond FMI 2.0 ---------------------------------------------------------------------
+
+/// The engine's inverse dynamics and friction loads at given states, from
+/// the FMU alone (the fit's equation-error stage, python/stickslip/fit/idim.py,
+/// calls it with ctypes; no instance, no FMI state):
+///
+/// ```c
+/// int stickslip_inverse_dynamics(
+///     const char *model, const char *urdf,                 /* resources/model.toml, its URDF or NULL */
+///     const char *const *settings, size_t n_settings,      /* "m[3]=8.0", ... */
+///     const double *states, size_t rows, size_t columns,   /* rows x [q(n), qd(n), qdd(n)], columns = 3n */
+///     double *tau, double *lever_load, size_t size,        /* rows x n each, size = rows * n */
+///     char *message, size_t message_size);                 /* the reason of an error */
+/// ```
+///
+/// The model is `model`'s text (with `urdf`, the text of the URDF it names)
+/// with `settings`, tunable parameters by FMU name as `--set` of the
+/// `inverse_dynamics` binary takes them, applied and then validated. Per row
+/// of `states` (SI units) and joint it writes the generalized force
+/// τ = M(q)·q̈ + bias(q, q̇), gravity included, into `tau` and the lever load L
+/// of the joint's friction (the dry friction is μ·L, (3.11)–(3.15)) into
+/// `lever_load`, NaN for a joint without friction: the numbers of the binary
+/// (both run [`inverse_dynamics_rows`]).
+///
+/// Returns 0, or 1 with the reason, NUL-terminated and cut to
+/// `message_size` bytes, in `message` (an empty string on success): a model
+/// that does not parse, an unknown or refused setting, `columns` ≠ 3n,
+/// `size` ≠ rows·n, a NULL array that should have values, overlapping
+/// outputs, a state that is not finite (its row and name), an internal error.
+/// The outputs are then unspecified. With `rows` = 0 the arrays are not
+/// looked at.
+///
+/// # Safety
+/// Each pointer is NULL or valid for the length its arguments give: `model`
+/// and `urdf` NUL-terminated, `settings[0..n_settings]` NUL-terminated strings,
+/// `states[0..rows·columns]`, `tau` and `lever_load` `[0..size]` each, `message[0..message_size]`.
+#[no_mangle]
+pub unsafe extern "C" fn stickslip_inverse_dynamics(
+    model: *const c_char,
+    urdf: *const c_char,
+    settings: *const *const c_char,
+    n_settings: usize,
+    states: *const f64,
+    rows: usize,
+    columns: usize,
+    tau: *mut f64,
+    lever_load: *mut f64,
+    size: usize,
+    message: *mut c_char,
+    message_size: usize,
+) -> c_int {
+    let run = || -> Result<(), Fault> {
+        // SAFETY: the pointers are null or valid by the function's contract.
+        let toml = unsafe { text(model, "model") }?.to_string();
+        let urdf = if urdf.is_null() { None } else { Some(unsafe { text(urdf, "urdf") }?.to_string()) };
+        let settings = unsafe { slice(settings, n_settings, "settings[]") }?
+            .iter()
+            .map(|&s| unsafe { text(s, "settings[]") })
+            .collect::<Result<Vec<_>, _>>()?;
+        let model = ModelSource { toml, urdf }.model().map_err(|e| Fault::error(format!("the model: {e}")))?;
+        let model = with_settings(model, &settings).map_err(|e| Fault::error(format!("settings: {e}")))?;
+        let n = model.nq();
+        if columns != 3 * n {
+            return Err(Fault::error(format!(
+                "a state row has {columns} values, the model's has 3n = {} (q, qd, qdd of {n} joints)",
+                3 * n
+            )));
+        }
+        let values = rows.checked_mul(columns).ok_or_else(|| Fault::error(format!("{rows} rows are too many")))?;
+        if size != rows * n {
+            return Err(Fault::error(format!("size = {size}: {rows} rows of {n} joints need {}", rows * n)));
+        }
+        let overlap = size > 0 && (tau as usize).abs_diff(lever_load as usize) < size.saturating_mul(size_of::<f64>());
+        if overlap {
+            return Err(Fault::error("`tau` and `lever_load` overlap"));
+        }
+        let states = unsafe { slice(states, values, "states[]") }?;
+        let tau = unsafe { slice_mut(tau, size, "tau[]") }?;
+        let lever_load = unsafe { slice_mut(lever_load, size, "lever_load[]") }?;
+        inverse_dynamics_rows(&model, &mut Data::new(&model), states, tau, lever_load).map_err(Fault::error)
+    };
+    let (status, reason) = match catch(run) {
+        Ok(()) => (0, String::new()),
+        Err(fault) => (1, fault.message),
+    };
+    // SAFETY: `message` is null or valid by contract; a buffer it cannot use is not written.
+    guard((), || {
+        let _ = unsafe { write_text(message, message_size, &reason, "message") };
+    });
+    status
 }

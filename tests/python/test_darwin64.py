@@ -14,7 +14,9 @@ universal file and per thin FMI 3.0 file alike (the tests named ``[fmi2]`` and
   ``arm64`` slice; FMI 3.0 two thin files, ``x86_64-darwin`` an ``x86_64`` and
   ``aarch64-darwin`` an ``arm64`` image; each a 64-bit little-endian ``MH_DYLIB``;
 * exports: the export trie (what dyld resolves against) names exactly the 34
-  FMI 2.0 co-simulation functions, ``_fmi2…``, respectively exactly the 75
+  FMI 2.0 co-simulation functions, ``_fmi2…``, and the one function beyond FMI,
+  ``_stickslip_inverse_dynamics`` (``EXPORTED_FUNCTIONS`` of
+  ``src/fmi/exports.rs``), respectively exactly the 75
   functions of the FMI 3.0 API, ``_fmi3…`` (``EXPORTED_FUNCTIONS`` of
   ``fmi3/src/lib.rs``), nothing else;
 * imports: ``/usr/lib/libSystem.B.dylib`` only (no weak, lazy, re-exported or
@@ -63,7 +65,9 @@ FreeFMUstate SerializedFMUstateSize SerializeFMUstate DeSerializeFMUstate
 GetDirectionalDerivative SetRealInputDerivatives GetRealOutputDerivatives DoStep
 CancelStep GetStatus GetRealStatus GetIntegerStatus GetBooleanStatus GetStringStatus
 """.split()
-EXPECTED_EXPORTS = {"_fmi2" + f for f in FMI2_CS_FUNCTIONS}
+# Beyond FMI: the engine's inverse dynamics, for the fit's equation-error stage.
+BEYOND_FMI = {"_stickslip_inverse_dynamics"}
+EXPECTED_EXPORTS = {"_fmi2" + f for f in FMI2_CS_FUNCTIONS} | BEYOND_FMI
 
 # FMI 3.0: every function of the API (fmi3Functions.h), for all three interface types;
 # the FMU provides co-simulation and answers the others with fmi3Error.
@@ -349,8 +353,19 @@ def test_fmi3_thin_dylibs_one_architecture_each(darwin64_fmi3):
         assert s.filetype == MH_DYLIB, f"{arch}: file type {s.filetype}, not MH_DYLIB"
 
 
-def test_exports_exactly_the_34_fmi2_functions(darwin64):
-    assert len(EXPECTED_EXPORTS) == 34
+def test_fmi2_function_list_is_the_librarys():
+    """The 34 FMI 2.0 names above and the one beyond FMI are src/fmi/exports.rs's
+    EXPORTED_FUNCTIONS (what build_fmu.sh checks)."""
+    source = (ROOT / "src" / "fmi" / "exports.rs").read_text()
+    block = re.search(r"EXPORTED_FUNCTIONS: \[&str; (\d+)\] = \[(.*?)\];", source, re.S)
+    assert block, "EXPORTED_FUNCTIONS not found in src/fmi/exports.rs"
+    names = re.findall(r'"(\w+)"', block.group(2))
+    assert len(names) == int(block.group(1)) == 35
+    assert {"_" + n for n in names} == EXPECTED_EXPORTS
+
+
+def test_exports_exactly_the_34_fmi2_functions_and_the_inverse_dynamics(darwin64):
+    assert len(EXPECTED_EXPORTS) == 35
     for arch, s in darwin64.items():
         exports = s.exports()
         assert exports == EXPECTED_EXPORTS, (
