@@ -11,7 +11,7 @@
   "equation-error stage could not run: ..." saying why and what to do.
 * μ_s of a v_s = 0 joint from the breakaways of its stuck phases (study (3.16), (3.18)), on
   runs the FMU made: joint 3 of the reference arm while joint 2 swings the slideway towards
-  the vertical (L of the stuck samples down to 1.4 % of its median) gives μ_s = 0.0892 for
+  the vertical (L of the stuck samples down to 1.4 % of its median) gives μ_s = 0.0894 for
   0.09, where the old rule (99th percentile of |F^d − τ|/L over the stuck samples) gave
   0.207 on the same data; joint 1 over the reference motion 0.2203 for 0.22.
 * The stage runs from a copy of the FMU in a temporary directory without starting any
@@ -241,11 +241,11 @@ def _old_rule(spec, unzipdir, joint: int, k: float) -> tuple:
 def test_mu_s_from_the_breakaways_where_the_old_rule_was_far_off(tmp_path, unzipdir):
     """Joint 3 (v_s = 0, μ_k = 0.06, μ_s = 0.09, k = 2e5) while joint 2 swings its slideway
     towards the vertical (:func:`_swing`, 2 s): the stuck samples' L goes down to a few percent
-    of its median (measured 1.4 %). The breakaways give μ_s within 5 % (measured 0.0892, from 8
-    breakaways, range 0.0863 to 0.0905); the old rule, on the same data, more than twice the
+    of its median (measured 1.4 %). The breakaways give μ_s within 5 % (measured 0.0894, from 8
+    breakaways, midpoints 0.0863 to 0.0905); the old rule, on the same data, more than twice the
     truth (measured 0.207). Then with k[3]
     and μ_k[3] estimated too, from 30 % off: the slip equation gives them and the breakaways,
-    read with its k, μ_s, each within 5 % (measured 0.0590, 199939, 0.0891)."""
+    read with its k, μ_s, each within 5 % (measured 0.0590, 199939, 0.0893)."""
     truth = {"mu_k[3]": 0.06, "mu_s[3]": 0.09, "k[3]": 2e5, "mu_k[1]": 0.2, "mu_s[1]": 0.2}
     spec = _measured_spec(tmp_path, truth, {"mu_s[3]": (0.3, (0.06, 0.5))}, _swing, 2.0)
     theta, notes = _estimate(spec, unzipdir)
@@ -254,7 +254,7 @@ def test_mu_s_from_the_breakaways_where_the_old_rule_was_far_off(tmp_path, unzip
     assert smallest < 0.05
     assert abs(theta["mu_s[3]"] / truth["mu_s[3]"] - 1) < 0.05, notes
     assert old > 2 * truth["mu_s[3]"]
-    assert "breakaways" in notes[-1] and "range" in notes[-1], notes
+    assert "from 8 breakaways" in notes[-1] and "midpoints 0.08" in notes[-1], notes
 
     off = {"mu_k[3]": (0.08, (0.02, 0.3)), "mu_s[3]": (0.12, (0.02, 0.5)), "k[3]": (2.6e5, (1e5, 1e6))}
     spec = _measured_spec(tmp_path, truth, off, _swing, 2.0)
@@ -277,8 +277,9 @@ def test_mu_s_of_joint_1_over_the_reference_motion(tmp_path, unzipdir):
 
 
 def test_mu_s_is_never_below_mu_k_and_stays_in_its_bounds():
-    """The FMU refuses μ_s < μ_k: a median below the known μ_k is raised to it, and clipped into
-    the estimate's bounds; without a usable breakaway μ_s is left out, with a note."""
+    """The FMU refuses μ_s < μ_k: an estimate below μ_k is raised to it, and clipped into the
+    estimate's bounds; without a usable breakaway μ_s is left out, with a note; a wide bracket
+    is left out and a narrow one weighs more."""
     from stickslip.fit import idim
 
     n = 40
@@ -287,13 +288,24 @@ def test_mu_s_is_never_below_mu_k_and_stays_in_its_bounds():
     ratio = np.full(n, 0.1)
     part = (ratio, load, speed, 0.1)
     assert idim.breakaways(*part) == ([(0.1, 0.1)], 0)
-    value, note = idim.breakaway_mu_s([part], 0.12, 0.05, 0.5)
-    assert value == 0.12 and "not below mu_k = 0.12" in note, note
-    value, note = idim.breakaway_mu_s([part], 0.0, 0.15, 0.5)
-    assert value == 0.15 and "within [0.15, 0.5]" in note, note
+    assert idim.breakaway_mu_s([part])[0] == 0.1
+    value, said = idim.admissible_mu_s(0.1, 0.12, 0.05, 0.5)
+    assert value == 0.12 and "not below mu_k = 0.12" in said, said
+    value, said = idim.admissible_mu_s(0.1, 0.0, 0.15, 0.5)
+    assert value == 0.15 and "within [0.15, 0.5]" in said, said
+    assert idim.admissible_mu_s(0.1, 0.08, 0.05, 0.5) == (0.1, "")
     weak = (ratio, np.where(np.arange(n) < 19, 100.0, 10.0), speed, 0.1)  # L small at the breakaway
-    value, note = idim.breakaway_mu_s([weak], 0.0, 0.05, 0.5)
+    value, note = idim.breakaway_mu_s([weak])
     assert value is None and note.startswith("mu_s left out: no usable breakaway (of 1 stuck phases"), note
+    # A bracket wider than half its midpoint (the ratio jumps from 0.1 to 0.2 across the edge) is
+    # left out; the narrower of two brackets weighs more.
+    wide = (np.where(np.arange(n) < 20, 0.1, 0.2), load, speed, 0.1)
+    value, note = idim.breakaway_mu_s([wide])
+    assert value is None and "none of them bracketing mu_s within 50%" in note, note
+    close = (np.where(np.arange(n) < 20, 0.1, 0.11), load, speed, 0.1)
+    loose = (np.where(np.arange(n) < 20, 0.1, 0.14), load, speed, 0.1)
+    assert idim.breakaway_mu_s([close, loose, close])[0] == pytest.approx(0.105)
+    assert idim.breakaway_mu_s([close, loose, loose])[0] == pytest.approx(0.105)
 
 
 # ---------------------------------------------------------------------------

@@ -25,8 +25,11 @@ Along each experiment whose flexible joints' positions q are all measured:
    does not enter them; per stuck phase that ends in a slip, the ratio |F^d − F*|/L at its
    last stuck samples bounds μ_s from below and at its first slipping samples from above.
    Only breakaways whose L is a sizeable part of the typical stuck load count (where L is
-   small the ratio is noise over nearly nothing); the median over them is the estimate,
-   never below μ_k and inside the estimate's bounds.
+   small the ratio is noise over nearly nothing), and only those whose two bounds lie close
+   (where the drive loads the joint fast the ratio moves a lot from one sample to the next);
+   the median of their midpoints, each weighted by the inverse of its bracket's width, is
+   the estimate. μ_s of either step is raised to μ_k where it is below (the FMU refuses
+   μ_s < μ_k) and clipped into the estimate's bounds.
 
 The result is a start for the output-error stage, not the estimate: filtered derivatives
 bias it, and a stiff drive's deflection is a small difference of two encoders.
@@ -56,6 +59,9 @@ MIN_STUCK = 5
 SLIP_WITHIN = 5
 LOAD_FRACTION = 0.3
 EDGE = 2
+# A breakaway brackets μ_s between its bounds; one whose bounds lie further apart than BRACKET
+# times their midpoint (the drive loaded the joint faster than the samples resolve) is left out.
+BRACKET = 0.5
 
 
 class InverseDynamicsError(ValueError):
@@ -287,17 +293,31 @@ def estimate(spec, unzipdir: str, flexible: list, initial: dict, start_values: d
             theta.update({f"{x}[{i}]": float(v) for x, v in zip(free, sol, strict=True)})
         name = f"mu_s[{i}]"
         if name in estimated and name not in theta and phases[i]:
-            mu_k = theta.get(f"mu_k[{i}]", mu_k_known[i])
             # |F^d − F*|/L with the drive's k and h of the slip equation where it estimated them.
             ratios = [
                 (np.abs(theta.get(f"k[{i}]", k) * d + theta.get(f"h[{i}]", h) * r - f) / load, load, speed, v_noise)
                 for k, h, d, r, f, load, speed, v_noise in phases[i]
             ]
-            value, note = breakaway_mu_s(ratios, mu_k, estimated[name].low, estimated[name].high)
+            value, note = breakaway_mu_s(ratios)
             notes.append(f"equation-error stage: joint {i}: {note}")
             if value is not None:
                 theta[name] = value
+        if name in theta:  # of the slip equation (v_s > 0) or of the breakaways
+            mu_k = theta.get(f"mu_k[{i}]", mu_k_known[i])
+            value, said = admissible_mu_s(theta[name], mu_k, estimated[name].low, estimated[name].high)
+            if said:
+                notes.append(f"equation-error stage: joint {i}: {name} = {theta[name]:.4g} {said}")
+            theta[name] = value
     return theta, notes
+
+
+def admissible_mu_s(value: float, mu_k: float, low: float, high: float) -> tuple:
+    """(μ_s, what was done, or ""): ``value`` raised to ``mu_k`` (the FMU refuses μ_s < μ_k)
+    and clipped into [``low``, ``high``]."""
+    taken = float(np.clip(max(value, mu_k), low, high))
+    if taken == value:
+        return value, ""
+    return taken, f"taken as {taken:.4g} (not below mu_k = {mu_k:.4g}, within [{low:g}, {high:g}])"
 
 
 def breakaways(ratio, load, speed, v_noise) -> tuple:
@@ -335,28 +355,31 @@ def breakaways(ratio, load, speed, v_noise) -> tuple:
     return found, skipped
 
 
-def breakaway_mu_s(experiments: list, mu_k: float, low: float, high: float) -> tuple:
+def breakaway_mu_s(experiments: list) -> tuple:
     """(μ_s or None, a note) of the :func:`breakaways` of every experiment (each the arguments
-    of one call): the median over the breakaways of the midpoint of each one's bounds, raised to
-    ``mu_k`` (the FMU refuses μ_s < μ_k) and clipped into [``low``, ``high``]."""
+    of one call): the midpoint of each breakaway's bounds, those whose bounds lie within
+    BRACKET of it, their median weighted by the inverse of each one's width (a narrow bracket
+    says more). :func:`admissible_mu_s` then keeps it above μ_k and within the bounds."""
     calls = [breakaways(*part) for part in experiments]
-    found = [b for part, _ in calls for b in part]
+    found = np.array([b for part, _ in calls for b in part]).reshape(-1, 2)
     skipped = sum(k for _, k in calls)
-    if not found:
+    middle = found.mean(axis=1)
+    width = np.abs(found[:, 1] - found[:, 0])
+    narrow = width <= BRACKET * middle
+    if not narrow.any():
+        wide = f", none of them bracketing mu_s within {BRACKET:.0%}" if len(found) else ""
         return None, (
-            f"mu_s left out: no usable breakaway (of {skipped} stuck phases of at least {MIN_STUCK} samples, "
-            f"none ended in a slip that held for {EDGE} samples at a load of at least {LOAD_FRACTION} of the "
-            "typical stuck one)"
+            f"mu_s left out: no usable breakaway (of {skipped + len(found)} stuck phases of at least {MIN_STUCK} "
+            f"samples, {len(found)} ended in a slip that held for {EDGE} samples at a load of at least "
+            f"{LOAD_FRACTION} of the typical stuck one{wide})"
         )
-    middle = np.array(found).mean(axis=1)
-    value = float(np.median(middle))
-    q25, q75 = np.percentile(middle, [25, 75])
+    middle, weight = middle[narrow], 1.0 / np.maximum(width[narrow], 1e-3 * middle[narrow])
+    order = np.argsort(middle)
+    value = float(middle[order][np.searchsorted(np.cumsum(weight[order]), 0.5 * weight.sum())])
     said = (
-        f"mu_s = {value:.4g} from {len(found)} breakaways (median of the midpoints of each one's bounds; "
-        f"range {middle.min():.4g} to {middle.max():.4g}, quartiles {q25:.4g} and {q75:.4g}; "
+        f"mu_s = {value:.4g} from {len(middle)} breakaways (the median of their brackets' midpoints, each "
+        f"weighted by its inverse width; midpoints {middle.min():.4g} to {middle.max():.4g}; "
+        f"{len(found) - len(middle)} breakaways bracketing it less closely than {BRACKET:.0%} and "
         f"{skipped} stuck phases without a usable breakaway left out)"
     )
-    clipped = float(np.clip(max(value, mu_k), low, high))
-    if clipped != value:
-        said += f", taken as {clipped:.4g} (not below mu_k = {mu_k:.4g}, within [{low:g}, {high:g}])"
-    return clipped, said
+    return value, said
