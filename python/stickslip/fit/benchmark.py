@@ -916,12 +916,14 @@ def summarize(rows: list, fits: list) -> dict:
     def group(select_rows, select_fits) -> dict:
         z = [abs(r["z"]) for r in select_rows if r["z"] is not None and math.isfinite(r["z"])]
         ratios = [f["cost_ratio"] for f in select_fits if f.get("cost_ratio") is not None]
+        rel = [abs(r["relative_error"]) for r in select_rows if _finite(r.get("relative_error"))]
         n = len(select_rows)
         return {
             "n": n,
             "within_3se": sum(r["within_3se"] for r in select_rows) / n if n else None,
             "within_2se": sum(r["within_2se"] for r in select_rows) / n if n else None,
             "median_abs_z": statistics.median(z) if z else None,
+            "median_abs_relative_error": statistics.median(rel) if rel else None,
             "median_cost_ratio": statistics.median(ratios) if ratios else None,
             "fits": len(select_fits),
             "fits_warned": sum(1 for f in select_fits if f.get("warnings")),
@@ -942,6 +944,10 @@ def summarize(rows: list, fits: list) -> dict:
         "by_arm": {a: group([r for r in rows if r["arm"] == a], [f for f in fits if f["arm"] == a]) for a in arms},
         "total": group(rows, fits),
     }
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 def _write(out: Path, settings: dict, fits: list, rows: list, t0: float) -> dict:
@@ -982,13 +988,17 @@ def markdown(doc: dict) -> str:
         "minimum). A fit warned: its result has warnings; failed: generation or fit raised.",
         "",
     ]
-    header = "| {} | n | within 3 SE | within 2 SE | median \\|z\\| | median cost ratio | fits warned | fits failed |"
-    rule = "|---|---|---|---|---|---|---|---|"
+    header = (
+        "| {} | n | within 3 SE | within 2 SE | median \\|z\\| | median \\|estimate/truth − 1\\| "
+        "| median cost ratio | fits warned | fits failed |"
+    )
+    rule = "|---|---|---|---|---|---|---|---|---|"
 
     def row(name, g):
         return (
             f"| {name} | {g['n']} | {_fmt(g['within_3se'])} | {_fmt(g['within_2se'])} | {_fmt(g['median_abs_z'])} | "
-            f"{_fmt(g['median_cost_ratio'], '.4g')} | {g['fits_warned']} of {g['fits']} | {g['fits_failed']} |"
+            f"{_fmt(g['median_abs_relative_error'], '.2g')} | {_fmt(g['median_cost_ratio'], '.4g')} | "
+            f"{g['fits_warned']} of {g['fits']} | {g['fits_failed']} |"
         )
 
     summary = doc["summary"]
