@@ -526,8 +526,8 @@ def generate(
                     if not math.isfinite(level) or level <= 0:
                         raise RuntimeError(f"joint {i} never slips in the probe run")
                     drawn[f"b_v[{i}]"] = ratios[i] * level / plans[i]["fast"]
-        except RuntimeError as e:
-            reasons.append(f"attempt {attempt}: {e}")
+        except Exception as e:  # noqa: BLE001 -- an FMU that refuses the loop's run (fmpy's FMICallException too)
+            reasons.append(f"attempt {attempt}: {type(e).__name__}: {e}")
             continue
         truth = {n: float(drawn[n]) for n in estimated}
         known = {**settings, **{n: float(v) for n, v in drawn.items() if n not in truth}}
