@@ -84,6 +84,11 @@ TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 # One build at a time per target dir: the stripped libraries and the darwin64
 # dylibs have fixed paths there (parallel tests build their own model's FMUs).
 mkdir -p "$TARGET_DIR"
+# The compiler cache's server starts now if it is not running: one that a cargo below
+# started would inherit the lock's descriptor 7 (and win64's 9) and hold the lock until it
+# exits at its idle timeout, 10 minutes, blocking every other build_fmu.sh meanwhile (seen
+# with parallel builds). "Address in use" means it runs already.
+if [ "${RUSTC_WRAPPER:-}" = sccache ]; then sccache --start-server </dev/null >/dev/null 2>&1 || true; fi
 exec 7>"$TARGET_DIR/.build_fmu.lock"
 flock 7
 LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
