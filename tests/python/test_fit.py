@@ -627,6 +627,19 @@ BAD = [
     ("sigma-zero", lambda d: _exp(d)["measured"]["q[1]"].update(sigma=0.0), None, ["q[1]", "sigma"]),
     ("sigma-negative", lambda d: _exp(d)["measured"]["q[3]"].update(sigma=-1e-6), None, ["q[3]", "sigma"]),
     ("sigma-missing", lambda d: _exp(d)["measured"]["q[3]"].pop("sigma"), None, ["q[3]", "sigma"]),
+    (
+        "resolution-negative",
+        lambda d: _exp(d)["measured"]["q[1]"].update(resolution=-1e-6),
+        None,
+        ["q[1]", "resolution"],
+    ),
+    (
+        "resolution-a-word",
+        lambda d: _exp(d)["measured"]["q[3]"].update(resolution="fine"),
+        None,
+        ["q[3]", "resolution"],
+    ),
+    ("resolution-nan", lambda d: _exp(d)["measured"]["q[3]"].update(resolution=math.nan), None, ["q[3]", "resolution"]),
     ("one-sample", None, lambda c: _head(c, 1), ["1 sample", "two"]),
     ("no-samples", None, lambda c: _head(c, 0), ["run.csv"]),
     ("unknown-top-key", lambda d: d.update(fmuu="x.fmu"), None, ["fmuu"]),
@@ -969,6 +982,8 @@ def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_r
         root = tmp_path / f"case{case}"
         root.mkdir()
         doc = _base(root, short)
+        # the encoder's count joins the mutated keys (a number, or "auto")
+        _exp(doc)["measured"]["q[1]"]["resolution"] = rng.choice([1.5e-6, "auto", 0.0])
         data = root / "run.csv"
         what = []
         for _ in range(rng.choice([1, 1, 2, 3])):
