@@ -179,12 +179,9 @@ class Crate:
         return not body.strip()
 
 
-def main():
-    src = Path(sys.argv[1] if len(sys.argv) > 1 else "src")
-    crate = Crate(src)
-    nodes = [f for f in crate.files if not crate.is_reexport_only(f) and f.parent != src / "bin"]
-    graph = {f: {d for d in crate.dependencies(f) if d in nodes} for f in nodes}
-    # Tarjan's strongly connected components.
+def strongly_connected(graph):
+    """Tarjan's strongly connected components of ``graph`` (node -> set of nodes), each a
+    list; tests/python/test_package_imports.py uses it on the Python package too."""
     index, low, stack, on, comps, counter = {}, {}, [], set(), [], [0]
 
     def visit(v):
@@ -209,9 +206,18 @@ def main():
             comps.append(comp)
 
     sys.setrecursionlimit(10000)
-    for v in nodes:
+    for v in graph:
         if v not in index:
             visit(v)
+    return comps
+
+
+def main():
+    src = Path(sys.argv[1] if len(sys.argv) > 1 else "src")
+    crate = Crate(src)
+    nodes = [f for f in crate.files if not crate.is_reexport_only(f) and f.parent != src / "bin"]
+    graph = {f: {d for d in crate.dependencies(f) if d in nodes} for f in nodes}
+    comps = strongly_connected(graph)
     cycles = [c for c in comps if len(c) > 1]
     for c in cycles:
         members = set(c)

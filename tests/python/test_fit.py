@@ -244,6 +244,14 @@ def test_a_start_the_fmu_refuses_is_penalized_not_fatal(tmp_path):
 # several starts, several experiments
 
 
+def _poor_start(tmp_path, **options) -> dict:
+    """μ_k[1] from 0.13 (the truth 0.17) in [0.12, 0.20] over 0.7 s, single shooting."""
+    data = fc.write_data(tmp_path / "run.csv", fc.measured(0.7, seed=1))
+    return fc.spec(
+        fc.experiment(data), ["mu_k[1]"], {"mu_k[1]": 0.13}, {"mu_k[1]": (0.12, 0.20)}, shooting="single", **options
+    )
+
+
 @pytest.mark.full
 def test_multi_start_finds_the_minimum_a_poor_start_misses(tmp_path):
     """Over 0.7 s the cost in μ_k[1] has three minima, each a different stick-slip pattern of
@@ -254,18 +262,7 @@ def test_multi_start_finds_the_minimum_a_poor_start_misses(tmp_path):
     result, within 3 standard errors of the truth. (The start from 0.13 stayed at more than
     20 times the noise floor while single shooting took one Jacobian step, 10⁻³ of the
     range; from a coarse to a fine step it reaches the floor too: 705.8 for 701.)"""
-    data = fc.write_data(tmp_path / "run.csv", fc.measured(0.7, seed=1))
-    spec = fc.spec(
-        fc.experiment(data),
-        ["mu_k[1]"],
-        {"mu_k[1]": 0.13},
-        {"mu_k[1]": (0.12, 0.20)},
-        shooting="single",
-        starts=5,
-        seed=1,
-        max_evaluations=30,
-    )
-    r = _fit(spec)
+    r = _fit(_poor_start(tmp_path, starts=5, seed=1, max_evaluations=30))
     floor = _noise_floor(r)
     print("noise floor", floor, [(s["origin"], s["initial"], s["cost"], s["parameters"]) for s in r["starts"]])
     lhs = [s for s in r["starts"] if s["origin"].startswith("latin hypercube")]
@@ -284,16 +281,7 @@ def test_a_fit_stuck_in_a_wrong_minimum_says_so(tmp_path):
     The result must not pass as an answer: ``trusted`` is false, the verdict says NOT
     TRUSTED, and a warning names a channel whose residuals the noise model does not explain
     and says what it may mean."""
-    data = fc.write_data(tmp_path / "run.csv", fc.measured(0.7, seed=1))
-    spec = fc.spec(
-        fc.experiment(data),
-        ["mu_k[1]"],
-        {"mu_k[1]": 0.13},
-        {"mu_k[1]": (0.12, 0.20)},
-        shooting="single",
-        max_evaluations=1,
-    )
-    r = _fit(spec)
+    r = _fit(_poor_start(tmp_path, max_evaluations=1))
     assert r["cost"] > 2 * _noise_floor(r)
     assert r["trusted"] is False and r["verdict"].startswith("NOT TRUSTED: misfit in q["), r["verdict"]
     misfit = [w for w in r["warnings"] if w.startswith("misfit in q[")]

@@ -38,34 +38,14 @@ def imports(package: Path) -> dict:
 
 
 def cycles(graph: dict) -> list:
-    """The strongly connected components of more than one module (Tarjan)."""
-    index, low, stack, on, found = {}, {}, [], set(), []
+    """The strongly connected components of more than one module, by the Tarjan of
+    scripts/check_imports.py (the Rust sources' check)."""
+    import importlib.util
 
-    def visit(v):
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w in graph[v]:
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            component = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                component.append(w)
-                if w == v:
-                    break
-            if len(component) > 1:
-                found.append(sorted(component))
-
-    for v in graph:
-        if v not in index:
-            visit(v)
-    return found
+    spec = importlib.util.spec_from_file_location("check_imports", ROOT / "scripts" / "check_imports.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return [sorted(c) for c in module.strongly_connected(graph) if len(c) > 1]
 
 
 def without_parents(graph: dict) -> dict:
