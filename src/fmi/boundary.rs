@@ -130,12 +130,23 @@ pub(crate) fn into_state(bytes: Vec<u8>) -> fmi2FMUstate {
 /// that was not freed.
 pub(crate) unsafe fn state<'a>(s: fmi2FMUstate) -> Result<&'a mut StateHandle, Fault> {
     let h = s.cast::<StateHandle>();
+    if h.is_null() {
+        return Err(Fault::error("the FMU state is NULL"));
+    }
+    if !h.is_aligned() {
+        // Never read: a handle this FMU made lies on its type's alignment.
+        return Err(Fault::error(format!(
+            "the FMU state {h:p} is misaligned (not aligned to {} bytes): not a pointer this FMU returned",
+            std::mem::align_of::<StateHandle>()
+        )));
+    }
     // SAFETY: see the function's contract; the magic number says `h` is a
     // live handle made by into_state.
     match unsafe { magic_at(h) } {
         Some(STATE_MAGIC) => Ok(unsafe { &mut *h }),
-        None => Err(Fault::error("the FMU state is NULL")),
-        Some(_) => Err(Fault::error("the pointer is not an FMU state of this FMU")),
+        _ => Err(Fault::error(format!(
+            "the pointer {h:p} is not a live FMU state of this FMU: freed already, or never returned as one"
+        ))),
     }
 }
 

@@ -138,9 +138,20 @@ fn null_and_foreign_pointers_are_rejected() {
         assert_eq!(fmi2GetReal(c, std::ptr::null(), 0, std::ptr::null_mut()), OK);
         assert_eq!(fmi2GetReal(c, std::ptr::null(), 2, std::ptr::null_mut()), ERROR);
         assert!(last_message(&log).2.contains("`vr[]` is NULL"));
-        // An instance passed as an FMU state.
+        // An instance passed as an FMU state: aligned, but not a live state.
         assert_eq!(fmi2SetFMUstate(c, c), ERROR);
-        assert!(last_message(&log).2.contains("not an FMU state"));
+        assert!(last_message(&log).2.contains("is not a live FMU state of this FMU"), "{:?}", last_message(&log));
+        // A misaligned pointer (never read) is said to be one, for set and free alike.
+        let misaligned: fmi2FMUstate = c.cast::<u8>().wrapping_add(1).cast();
+        assert_eq!(fmi2SetFMUstate(c, misaligned), ERROR);
+        assert!(last_message(&log).2.contains("misaligned (not aligned to 8 bytes)"), "{:?}", last_message(&log));
+        let mut freeing = misaligned;
+        assert_eq!(fmi2FreeFMUstate(c, &mut freeing), ERROR);
+        assert!(last_message(&log).2.contains("misaligned"), "{:?}", last_message(&log));
+        assert_eq!(freeing, misaligned, "a pointer that is not a state is left to the master");
+        // NULL for set: said to be NULL.
+        assert_eq!(fmi2SetFMUstate(c, std::ptr::null_mut()), ERROR);
+        assert!(last_message(&log).2.contains("the FMU state is NULL"), "{:?}", last_message(&log));
         let mut none: fmi2FMUstate = std::ptr::null_mut();
         assert_eq!(fmi2FreeFMUstate(c, &mut none), OK);
         assert_eq!(fmi2FreeFMUstate(c, std::ptr::null_mut()), OK);

@@ -275,6 +275,28 @@ def test_state_round_trip(fmu3):
         assert any("FMU state" in m or "checksum" in m for _, _, m in s.log)
 
 
+def test_state_pointers_that_are_not_states_are_named(fmu3):
+    """fmi3SetFMUState and fmi3FreeFMUState say what is wrong with a pointer that is no FMU
+    state: NULL, misaligned (never read), or aligned but no live state of this FMU (the
+    instance itself); a live state still works after them."""
+    from ctypes import c_void_p
+
+    with Slave3() as s:
+        s.initialize()
+        state = s.fmu.getFMUState()
+        misaligned = c_void_p(state.value + 1)
+        assert "error" in status_of(lambda: s.fmu.setFMUState(misaligned))
+        assert "fmi3SetFMUState" in s.log[-1][2] and "is misaligned (not aligned to 8 bytes)" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.freeFMUState(misaligned))
+        assert "is misaligned" in s.log[-1][2] and misaligned.value == state.value + 1
+        assert "error" in status_of(lambda: s.fmu.setFMUState(c_void_p(s.fmu.component)))
+        assert "is not a live FMU state of this FMU" in s.log[-1][2]
+        assert "error" in status_of(lambda: s.fmu.setFMUState(c_void_p(None)))
+        assert "the FMU state is NULL" in s.log[-1][2]
+        s.fmu.setFMUState(state)
+        s.fmu.freeFMUState(state)
+
+
 def status_of(call) -> str:
     try:
         call()
