@@ -353,15 +353,21 @@ def test_fmi3_thin_dylibs_one_architecture_each(darwin64_fmi3):
         assert s.filetype == MH_DYLIB, f"{arch}: file type {s.filetype}, not MH_DYLIB"
 
 
+def _exported_functions(path: str, name: str, count: int) -> set:
+    """The Mach-O symbol names (a leading underscore) of the EXPORTED_FUNCTIONS array in the
+    Rust source ``path``, whose length and entries must both be ``count``."""
+    source = (ROOT / path).read_text()
+    block = re.search(r"EXPORTED_FUNCTIONS: \[&str; (\d+)\] = \[(.*?)\];", source, re.S)
+    assert block, f"EXPORTED_FUNCTIONS not found in {path}"
+    names = re.findall(f'"({name})"', block.group(2))
+    assert len(names) == int(block.group(1)) == count
+    return {"_" + n for n in names}
+
+
 def test_fmi2_function_list_is_the_librarys():
     """The 34 FMI 2.0 names above and the one beyond FMI are src/fmi/exports.rs's
     EXPORTED_FUNCTIONS (what build_fmu.sh checks)."""
-    source = (ROOT / "src" / "fmi" / "exports.rs").read_text()
-    block = re.search(r"EXPORTED_FUNCTIONS: \[&str; (\d+)\] = \[(.*?)\];", source, re.S)
-    assert block, "EXPORTED_FUNCTIONS not found in src/fmi/exports.rs"
-    names = re.findall(r'"(\w+)"', block.group(2))
-    assert len(names) == int(block.group(1)) == 35
-    assert {"_" + n for n in names} == EXPECTED_EXPORTS
+    assert _exported_functions("src/fmi/exports.rs", r"\w+", 35) == EXPECTED_EXPORTS
 
 
 def test_exports_exactly_the_34_fmi2_functions_and_the_inverse_dynamics(darwin64):
@@ -376,12 +382,7 @@ def test_exports_exactly_the_34_fmi2_functions_and_the_inverse_dynamics(darwin64
 
 def test_fmi3_function_list_is_the_librarys():
     """The 75 names above are fmi3/src/lib.rs's EXPORTED_FUNCTIONS (what build_fmu.sh checks)."""
-    source = (ROOT / "fmi3" / "src" / "lib.rs").read_text()
-    block = re.search(r"EXPORTED_FUNCTIONS: \[&str; (\d+)\] = \[(.*?)\];", source, re.S)
-    assert block, "EXPORTED_FUNCTIONS not found in fmi3/src/lib.rs"
-    names = re.findall(r'"(fmi3\w+)"', block.group(2))
-    assert len(names) == int(block.group(1)) == 75
-    assert {"_" + n for n in names} == EXPECTED_FMI3_EXPORTS
+    assert _exported_functions("fmi3/src/lib.rs", r"fmi3\w+", 75) == EXPECTED_FMI3_EXPORTS
 
 
 def test_exports_exactly_the_75_fmi3_functions(darwin64_fmi3):
