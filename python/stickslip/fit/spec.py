@@ -51,7 +51,8 @@ from ..fmu import DEFAULT_FMU
 from ..motion import MotionError, is_finite_number, load_motion_for
 
 TOP_KEYS = ("fmu", "experiment", "estimate", "options")
-EXPERIMENT_KEYS = ("name", "data", "time", "inputs", "motion", "parameters", "measured")
+EXPERIMENT_KEYS = ("name", "data", "time", "inputs", "motion", "parameters", "measured", "start", "derivatives")
+STARTS = ("data", "rest")  # an experiment's start state: from its first samples, or the FMU's own
 ESTIMATE_KEYS = ("initial", "bounds", "scale")
 LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
 SHOOTING = ("auto", "single", "multiple")
@@ -67,6 +68,7 @@ OPTION_DEFAULTS = {
     "error_tolerance": None,
     "max_evaluations": 200,
     "diff_step": 1e-3,
+    "derivatives": "auto",
 }
 MAX_STARTS = 1000
 
@@ -134,6 +136,9 @@ class Experiment:
     channels: list
     dropped_rows: list = field(default_factory=list)
     motion_file: str | None = None
+    derivatives: object = None  # the derivative filter (stickslip.fit.filtering.Filter)
+    start: str = "data"  # "data": from the first samples; "rest": the FMU's own; "parameters": given
+    filtered_inputs: list = field(default_factory=list)  # inputs whose column is a measurement, filtered
 
     @property
     def n_samples(self) -> int:
@@ -310,11 +315,25 @@ def _options(raw, where: str) -> dict:
     for key in ("absolute_sigma", "drop_nan"):
         if not isinstance(options[key], bool):
             raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
+    options["derivatives"] = _filter(options["derivatives"], f"{where}: derivatives")
     if options["error_tolerance"] is not None:
         options["error_tolerance"] = _number(options["error_tolerance"], f"{where}: error_tolerance")
         if options["error_tolerance"] <= 0:
             raise FitSpecError(f"{where}: error_tolerance = {options['error_tolerance']:g}: must be > 0")
     return options
+
+
+def _filter(raw, where: str):
+    """The derivative filter of a SPEC value (:mod:`stickslip.fit.filtering`); a Filter given
+    already (the options' one, for an experiment without its own) is taken as it is."""
+    from .filtering import Filter, parse
+
+    if isinstance(raw, Filter):
+        return raw
+    try:
+        return parse(raw, where)
+    except ValueError as e:
+        raise FitSpecError(str(e)) from None
 
 
 def _tunable(name: str, variables: dict, where: str):
@@ -478,8 +497,49 @@ def _experiment(raw: dict, k: int, source: str, base: Path, md, variables: dict,
         if c.resolution == "auto":
             c.resolution = detect_resolution(c.values)
             c.resolution_detected = c.resolution > 0
-    (motion, torques), motion_file = _motion(raw, inputs, table, t, md, where, base)
-    return Experiment(name, data_path, t, motion, torques, dict(inputs), parameters, channels, dropped, motion_file)
+    derivatives = _filter(raw.get("derivatives", options["derivatives"]), f"{where}: derivatives")
+    start = _start(raw, parameters, where)
+    measured_columns = {c.column for c in channels}
+    (motion, torques, filtered), motion_file = _motion(
+        raw, inputs, table, t, md, where, base, derivatives, measured_columns
+    )
+    return Experiment(
+        name,
+        data_path,
+        t,
+        motion,
+        torques,
+        dict(inputs),
+        parameters,
+        channels,
+        dropped,
+        motion_file,
+        derivatives,
+        start,
+        filtered,
+    )
+
+
+START_PARAMETERS = ("use_start_values", "static_start", "q_start[", "qd_start[", "theta_m_start[", "omega_m_start[")
+
+
+def _start(raw: dict, parameters: dict, where: str) -> str:
+    """How the experiment starts: "data" (the default: from its first samples), "rest" (the
+    FMU's own start), or "parameters" (the experiment's parameters set the start values)."""
+    given = [p for p in parameters if p.startswith(START_PARAMETERS)]
+    start = raw.get("start")
+    if start is not None and start not in STARTS:
+        raise FitSpecError(
+            f"{where}: start = {start!r}: one of {', '.join(map(repr, STARTS))} ('data': the joints' positions and "
+            "speeds of the first samples, the default; 'rest': the FMU's own start)"
+        )
+    if given:
+        if start is not None:
+            raise FitSpecError(
+                f"{where}: start = {start!r} and the start values {given} in parameters: give one of the two"
+            )
+        return "parameters"
+    return start or "data"
 
 
 def _read_csv(path: Path, where: str) -> dict:
@@ -499,11 +559,17 @@ def _read_csv(path: Path, where: str) -> dict:
     return {c: pd.to_numeric(frame[c], errors="coerce").to_numpy(dtype=np.float64) for c in frame.columns}
 
 
-def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path):
+def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path, derivatives, measured: set):
     """The drive inputs: (``motion(t, step)`` -> (q*, q*', q*'') over the joints, a
-    :class:`Torques` of the motor torques or None) and the motion file's name (None for
-    columns)."""
+    :class:`Torques` of the motor torques or None, the inputs whose column is a measurement)
+    and the motion file's name (None for columns).
+
+    A q_star column that is a measurement (a measured channel's column too, or samples whose
+    noise or encoder count dominates their differences, :func:`stickslip.fit.filtering.rough`)
+    goes through the derivative filter: q*, q*', q*'' are the filter's; a
+    command column (a controller's set points) through the not-a-knot spline of its samples."""
     from ..motion import SplineMotion, fmu_joints, motor_joints
+    from .filtering import rough
 
     joints, _ = fmu_joints(md)
     motors = motor_joints(md)
@@ -512,19 +578,21 @@ def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path)
         if not path.is_absolute():
             path = base / path
         try:
-            return (load_motion_for(path, md), None), str(path)
+            return (load_motion_for(path, md), None, []), str(path)
         except (MotionError, OSError) as e:
             raise FitSpecError(f"{where}: motion = {str(path)!r}: {e}") from None
     if not inputs:
         raise FitSpecError(f"{where}: no `inputs` and no `motion`: say how the drives were commanded")
     start = {v.name: float(v.start or 0.0) for v in md.modelVariables if v.causality == "input"}
     q = np.array([[start.get(f"q_star[{i}]", 0.0) for i in range(1, joints + 1)]] * len(t))
-    torque_names, torque_columns = [], []
+    torque_names, torque_columns, filtered = [], [], []
     for name, column in inputs.items():
         m = re.fullmatch(r"(q_star|tau_m)\[(\d+)\]", name)
         i = int(m.group(2)) if m else 0
         if m and m.group(1) == "q_star" and 1 <= i <= joints:
             q[:, i - 1] = table[column]
+            if derivatives.method != "spline" and (column in measured or rough(table[column])):
+                filtered.append(name)
         elif m and m.group(1) == "tau_m" and i in motors:
             torque_names.append(name)
             torque_columns.append(table[column])
@@ -535,7 +603,10 @@ def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path)
                 "spline through the column)"
             )
     torques = Torques(t, torque_names, np.column_stack(torque_columns)) if torque_names else None
-    return (SplineMotion(t, q, f"{where}: inputs"), torques), None
+    motion = SplineMotion(t, q, f"{where}: inputs")
+    if filtered:
+        motion = FilteredMotion(motion, t, q, [int(x[7:-1]) for x in filtered], derivatives)
+    return (motion, torques, filtered), None
 
 
 class Torques:
@@ -552,3 +623,39 @@ class Torques:
     def __call__(self, t: float):
         """(values, first derivatives, second derivatives) at t, over ``names``."""
         return self.spline(t), self.spline(t, 1), self.spline(t, 2)
+
+
+class FilteredMotion:
+    """A :class:`stickslip.motion.SplineMotion` whose joints ``joints`` (1-based) are measured
+    positions: at the samples their q*, q*', q*'' are the derivative filter's
+    (:func:`stickslip.fit.filtering.derivatives`); between samples, the cubic spline through
+    the filtered values (its rates at the samples are the spline's, close to the filter's)."""
+
+    def __init__(self, spline_motion, time, q, joints: list, derivatives):
+        from scipy.interpolate import CubicSpline
+
+        from .filtering import derivatives as filtered
+
+        self.inner = spline_motion
+        self.joints = spline_motion.joints
+        self.columns = [i - 1 for i in joints]
+        self.time = np.asarray(time, dtype=np.float64)
+        value, rate, accel = filtered(self.time, np.asarray(q, dtype=np.float64)[:, self.columns], derivatives)
+        self.at_samples = (value, rate, accel)
+        self.spline = CubicSpline(self.time, value, axis=0)
+        self.end_time, self.stop_time = spline_motion.end_time, spline_motion.stop_time
+        self.source = spline_motion.source
+
+    def __call__(self, t: float, step: float = 0.0):
+        q, qd, qdd = (list(x) for x in self.inner(t, step))
+        k = int(np.searchsorted(self.time, t))
+        exact = k < len(self.time) and self.time[k] == t
+        for j, c in enumerate(self.columns):
+            if exact:
+                q[c], qd[c], qdd[c] = (float(x[k, j]) for x in self.at_samples)
+            elif self.time[0] <= t <= self.time[-1]:
+                q[c], qd[c], qdd[c] = (float(self.spline(t, d)[j]) for d in (0, 1, 2))
+        return q, qd, qdd
+
+    def describe(self) -> str:
+        return self.inner.describe() + f"; joints {[c + 1 for c in self.columns]} through the derivative filter"
