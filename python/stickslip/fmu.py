@@ -7,7 +7,7 @@
 * :func:`set_value`: a parameter set by its modelDescription name;
 * :func:`initialize` and :func:`communication_points`: an instance set up with its parameters
   and stepped over a motion, the same way by every command (inputs set at t_k = k * step,
-  then ``doStep(t_k, step)``).
+  a motion file's motor torques with their first two derivatives, then ``doStep(t_k, step)``).
 """
 
 from __future__ import annotations
@@ -74,10 +74,26 @@ def _input_values(inputs) -> list:
     return [float(x) for x in (*q, *qd, *qdd)]
 
 
+def _set_torques(slave, motion, t: float) -> None:
+    """The motor torques of ``motion`` at t (its ``torques``, a :class:`stickslip.motion.TorqueSpline`
+    bound to the FMU by :func:`stickslip.motion.load_motion_for`; none for most motions): the
+    values by fmi2SetReal, their first and second derivatives by fmi2SetRealInputDerivatives."""
+    torques = getattr(motion, "torques", None)
+    if torques is None:
+        return
+    if torques.references is None:
+        raise ValueError(f"{torques.source}: motor torques not bound to an FMU: load the motion with load_motion_for")
+    value, rate, accel = torques(t)
+    n = len(torques.references)
+    slave.setReal(torques.references, [float(x) for x in value])
+    slave.setRealInputDerivatives(torques.references, [1] * n, [float(x) for x in rate])
+    slave.setRealInputDerivatives(torques.references, [2] * n, [float(x) for x in accel])
+
+
 def initialize(slave, md, parameters: dict, input_vrs: list, motion, step: float) -> None:
     """setupExperiment at t = 0, the parameters set by name, initialization with the motion's
-    inputs at t = 0. An unknown name raises ValueError; what the FMU refuses raises fmpy's
-    FMICallException."""
+    inputs at t = 0 (and its motor torques, if it gives any). An unknown name raises ValueError;
+    what the FMU refuses raises fmpy's FMICallException."""
     by_name = {v.name: v for v in md.modelVariables}
     slave.setupExperiment(startTime=0.0)
     for name, value in parameters.items():
@@ -86,15 +102,18 @@ def initialize(slave, md, parameters: dict, input_vrs: list, motion, step: float
         set_value(slave, by_name[name], value)
     slave.enterInitializationMode()
     slave.setReal(input_vrs, _input_values(motion(0.0, step)))
+    _set_torques(slave, motion, 0.0)
     slave.exitInitializationMode()
 
 
 def communication_points(slave, input_vrs: list, motion, end: float, step: float):
-    """Steps an initialized instance from 0 to ``end``: at t_k = k * step the motion's inputs,
-    then ``doStep(t_k, step)``; yields (k + 1, t_{k+1}) after each step."""
+    """Steps an initialized instance from 0 to ``end``: at t_k = k * step the motion's inputs
+    (and its motor torques with their first two derivatives, if it gives any), then
+    ``doStep(t_k, step)``; yields (k + 1, t_{k+1}) after each step."""
     for k in range(round(end / step)):
         t = k * step
         slave.setReal(input_vrs, _input_values(motion(t, step)))
+        _set_torques(slave, motion, t)
         slave.doStep(currentCommunicationPoint=t, communicationStepSize=step)
         yield k + 1, (k + 1) * step
 

@@ -10,9 +10,14 @@ profile of every joint over T = 1.5 s, evaluated with the same floating-point op
 A *motion file* (TOML, docs/motion.md; :func:`load_motion`) gives the motion of any chain:
 per joint (a ``[joints.<name>]`` table as in a model file, or an ``[[joint]]`` entry with its
 index or name) a cycloid (or a sequence of them) or a constant, or a CSV of t and q*_1..q*_n whose
-rates and accelerations come from a cubic spline through the samples (:class:`SplineMotion`).
-:func:`fmu_joints` reads the number of joints (and their URDF names, when the FMU gives them)
-from the FMU's modelDescription; the file is checked against it.
+rates and accelerations come from a cubic spline through the samples (:class:`SplineMotion`);
+for an FMU with motor drives the CSV may also give their torques tau_m[i] (:class:`TorqueSpline`,
+set with their first two derivatives by :func:`stickslip.fmu.communication_points`) and leave out
+their q* columns. :func:`fmu_joints` reads the number of joints (and their URDF names, when the
+FMU gives them) from the FMU's modelDescription; the file is checked against it.
+
+The reference motion is for the reference arm only: :func:`reference_motion_refusal` says why
+it must not drive another FMU (:func:`runs_reference_motion`: whether it may).
 
 :class:`TableMotion` is the older CSV table of a sweep SPEC (``motion = "file.csv"``: linear
 interpolation, optional rate columns), kept as it was so that existing sweeps reproduce.
@@ -26,6 +31,7 @@ import itertools
 import math
 import re
 import tomllib
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -266,10 +272,19 @@ class SplineMotion:
     <= 3 exactly, on any grid) or "rest" (clamped: q*' = 0 at the first and last sample, for
     rest-to-rest motions). Before the first sample q* holds its first value, after the last
     its last value, with zero rates.
+
+    ``torques``: the motor torques of the CSV (a :class:`TorqueSpline`), or None.
     """
 
     def __init__(
-        self, time, q, source: str, boundary: str = "not-a-knot", stop_time: float | None = None, settle: float = SETTLE
+        self,
+        time,
+        q,
+        source: str,
+        boundary: str = "not-a-knot",
+        stop_time: float | None = None,
+        settle: float = SETTLE,
+        torques=None,
     ):
         from scipy.interpolate import CubicSpline
 
@@ -282,6 +297,7 @@ class SplineMotion:
         self.first, self.last = q[0].copy(), q[-1].copy()
         self.end_time = float(self.time[-1])
         self.stop_time = self.end_time + settle if stop_time is None else stop_time
+        self.torques = torques
 
     def evaluate(self, t: float):
         """(q, q', q'') as arrays over the joints at time t."""
@@ -300,7 +316,47 @@ class SplineMotion:
         return (
             f"{self.source}: {self.joints} joints, {len(self.time)} samples over "
             f"[{self.time[0]:g}, {self.time[-1]:g}] s, cubic spline ({self.boundary} ends)"
+            + (f"; motor torques {', '.join(self.torques.names)} (not-a-knot)" if self.torques is not None else "")
         )
+
+
+class TorqueSpline:
+    """Motor torques tau_m[i] sampled at times t_0 < ... < t_m (columns of a motion's CSV),
+    joined by a not-a-knot cubic spline: SciPy's ``CubicSpline`` of the samples, the same call
+    as the fit's :class:`stickslip.fit.spec.Torques`, so the values are the fit's. At a
+    communication point the FMU gets the value and the spline's first two derivatives
+    (fmi2SetRealInputDerivatives of orders 1 and 2) and holds their Taylor polynomial across the
+    step. Before the first sample the torque holds its first value, after the last its last
+    value, with zero derivatives (as q* of :class:`SplineMotion`).
+
+    ``references``: the value references of ``names`` in the FMU, set by :func:`load_motion_for`
+    (None until then)."""
+
+    def __init__(self, time, names: list, values, source: str = "motion"):
+        from scipy.interpolate import CubicSpline
+
+        self.names = list(names)
+        self.source = source
+        self.time = np.asarray(time, dtype=np.float64)
+        values = np.asarray(values, dtype=np.float64)  # (samples, torques)
+        self.spline = CubicSpline(self.time, values, axis=0)
+        self.first, self.last = values[0].copy(), values[-1].copy()
+        self.references = None
+
+    def __call__(self, t: float):
+        """(values, first derivatives, second derivatives) at t, as arrays over ``names``."""
+        zero = np.zeros(len(self.names))
+        if t < self.time[0]:
+            return self.first.copy(), zero, zero.copy()
+        if t > self.time[-1]:
+            return self.last.copy(), zero, zero.copy()
+        return self.spline(t), self.spline(t, 1), self.spline(t, 2)
+
+
+def motion_torques(motion) -> list:
+    """The motor torques tau_m[i] a motion gives (the columns of its CSV), by name; [] for none."""
+    torques = getattr(motion, "torques", None)
+    return list(torques.names) if torques is not None else []
 
 
 def _number(value, what: str, where: str, example: str) -> float:
@@ -474,7 +530,13 @@ def _joint_motion(doc: dict, joints: int, names: dict, where: str, stop, settle)
     return CycloidMotion(segments, hold, where, stop, settle)
 
 
-def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop, settle) -> SplineMotion:
+def _csv_motion(
+    path: Path, joints: int, names: dict, where: str, boundary, stop, settle, motors: dict | None = None
+) -> SplineMotion:
+    """The :class:`SplineMotion` of a CSV. ``motors`` {joint i: start q*} of the FMU's motor
+    drives: their torque columns tau_m[i] are taken, and their q_star[i] columns may be left out
+    (q* is then constant, the start value given)."""
+    motors = motors or {}
     try:
         with open(path, newline="") as f:
             rows = [
@@ -488,10 +550,15 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
         raise MotionError(f"{where}: csv {str(path)!r}: not a CSV text file ({e})") from None
     src = f"{where}: csv {path.name!r}"
     expected = ["t"] + [f"q_star[{i}]" for i in range(1, joints + 1)]
+    motor_list = ", ".join(map(str, sorted(motors)))
+    torque_columns = ", ".join(f"tau_m[{i}]" for i in sorted(motors))
     if not rows:
-        raise MotionError(f"{src}: empty; expected a header row {', '.join(expected)} and the samples")
-    header = [h.strip() for h in rows[0][1]]
-    if len(header) != joints + 1:
+        raise MotionError(
+            f"{src}: empty; expected a header row {', '.join(expected)} and the samples"
+            + (f" (and the motor torques {torque_columns})" if motors else "")
+        )
+    head, header = rows[0][0], [h.strip() for h in rows[0][1]]
+    if not motors and len(header) != joints + 1 and not any(re.fullmatch(r"tau_m\[\d+\]", h) for h in header):
         raise MotionError(
             f"{src}: {len(header)} columns, expected {joints + 1} (t and one per joint of the "
             f"FMU's {joints}): {', '.join(expected)}"
@@ -501,22 +568,55 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
             f"{src}: the first column must be the time `t` (s); the header is {header}"
             + (" (a header row is required)" if _is_number(header[0]) else "")
         )
-    column_of = {}  # joint index -> column
+    column_of, torque_of = {}, {}  # joint index -> column of its q_star, of its tau_m
     for col, h in enumerate(header[1:], 1):
+        at = f"{src}, line {head}, column {col + 1}"
+        torque = re.fullmatch(r"tau_m\[(\d+)\]", h)
+        if torque:
+            i = int(torque.group(1))
+            if i not in motors:
+                raise MotionError(
+                    f"{at}: {h!r}: joint {i} has no motor drive; "
+                    + (
+                        f"the FMU's motor drives are on joints {motor_list} ({torque_columns})"
+                        if motors
+                        else f"the FMU has no motor drives (no input tau_m[i]): the columns are t, then "
+                        f"q_star[1]..q_star[{joints}]"
+                    )
+                )
+            if i in torque_of:
+                raise MotionError(f"{at}: {h!r} is given twice (columns {torque_of[i] + 1} and {col + 1})")
+            torque_of[i] = col
+            continue
         m = re.fullmatch(r"q_star\[(\d+)\]", h)
         i = int(m.group(1)) if m else {v: k for k, v in names.items()}.get(h)
         if i is None or not 1 <= i <= joints:
             raise MotionError(
-                f"{src}: unknown column {h!r}; the columns are t, then q_star[1]..q_star[{joints}]"
+                f"{at}: unknown column {h!r}; the columns are t, then q_star[1]..q_star[{joints}]"
                 + (f" or the joint names {[names[k] for k in sorted(names)]}" if names else "")
+                + (f", and the motor torques {torque_columns}" if motors else "")
             )
         if i in column_of:
-            raise MotionError(f"{src}: joint {i} has two columns ({header[column_of[i]]!r} and {h!r})")
+            raise MotionError(f"{at}: joint {i} has two columns ({header[column_of[i]]!r} and {h!r})")
         column_of[i] = col
+    missing = [i for i in range(1, joints + 1) if i not in column_of and i not in motors]
+    if missing:
+        i = missing[0]
+        raise MotionError(
+            f"{src}, line {head}: no column q_star[{i}]: joint {i} has no motor drive, the motion gives its "
+            f"drive position; every such joint needs its column"
+            + (
+                f" (only a motor joint, {motor_list}, may leave its q_star out: it starts at the FMU's start value)"
+                if motors
+                else f" ({', '.join(expected)})"
+            )
+        )
+    width = len(header)
+    for_row = f"t and {joints} joints" if width == joints + 1 and not torque_of else "the header's columns"
     data = []
     for line, r in rows[1:]:
-        if len(r) != joints + 1:
-            raise MotionError(f"{src}, line {line}: {len(r)} values, expected {joints + 1} (t and {joints} joints)")
+        if len(r) != width:
+            raise MotionError(f"{src}, line {line}: {len(r)} values, expected {width} ({for_row})")
         try:
             values = [float(x) for x in r]
         except ValueError:
@@ -536,8 +636,19 @@ def _csv_motion(path: Path, joints: int, names: dict, where: str, boundary, stop
                 f"the time column must increase strictly"
             )
     table = np.array([v for _, v in data], dtype=np.float64)
-    q = table[:, [column_of[i] for i in range(1, joints + 1)]]
-    return SplineMotion(table[:, 0], q, src, boundary, stop, settle)
+    if len(column_of) == joints:
+        q = table[:, [column_of[i] for i in range(1, joints + 1)]]
+    else:  # a motor joint without its column: q* constant, its start value
+        q = np.column_stack(
+            [table[:, column_of[i]] if i in column_of else np.full(len(table), motors[i]) for i in range(1, joints + 1)]
+        )
+    torques = None
+    if torque_of:
+        order = sorted(torque_of)
+        torques = TorqueSpline(
+            table[:, 0], [f"tau_m[{i}]" for i in order], table[:, [torque_of[i] for i in order]], src
+        )
+    return SplineMotion(table[:, 0], q, src, boundary, stop, settle, torques)
 
 
 def _is_number(text: str) -> bool:
@@ -548,12 +659,15 @@ def _is_number(text: str) -> bool:
         return False
 
 
-def load_motion(path, joints: int, names: dict | None = None):
+def load_motion(path, joints: int, names: dict | None = None, motors: dict | None = None):
     """The motion of a motion file (TOML, docs/motion.md) for a chain of ``joints`` joints
     whose URDF names are ``names`` ({index: name}, optional): a :class:`CycloidMotion` or a
     :class:`SplineMotion`, callable as ``motion(t, step)``, with ``joints``, ``end_time``
     (from then on every joint is at rest), ``stop_time`` (the file's `end`, else end_time +
-    `settle`) and ``describe()``. Raises :class:`MotionError` naming the file and the problem."""
+    `settle`) and ``describe()``. ``motors`` ({joint i: start q*}, optional): the joints with a
+    motor drive, whose torques tau_m[i] a CSV may give and whose q_star[i] column it may leave
+    out (q* is then the start value given). Raises :class:`MotionError` naming the file and the
+    problem."""
     path = Path(path)
     names = names or {}
     where = f"motion file {path}"
@@ -607,7 +721,7 @@ def load_motion(path, joints: int, names: dict | None = None):
         boundary = doc.get("boundary", "not-a-knot")
         if boundary not in BOUNDARIES:
             raise MotionError(f"{where}: boundary = {boundary!r}: must be one of {list(BOUNDARIES)}")
-        return _csv_motion(path.parent / doc["csv"], joints, names, where, boundary, stop, settle)
+        return _csv_motion(path.parent / doc["csv"], joints, names, where, boundary, stop, settle, motors)
     if "boundary" in doc:
         raise MotionError(f"{where}: `boundary` applies to a `csv` motion only")
     if not per_joint:
@@ -619,13 +733,25 @@ def load_motion(path, joints: int, names: dict | None = None):
 
 
 def load_motion_for(path, md):
-    """:func:`load_motion` checked against the FMU whose modelDescription (fmpy) is ``md``: also
-    refused if it moves a joint with a motor drive (:func:`motor_joints`), whose q* the FMU
-    ignores while stepping (a `hold` of it, its start position, is taken)."""
+    """:func:`load_motion` checked against the FMU whose modelDescription (fmpy) is ``md``: a
+    CSV may give the torques tau_m[i] of its motor drives (:func:`motor_joints`; their value
+    references set in ``motion.torques.references``) and leave out their q_star[i] columns (q*
+    is then the FMU's start value of q_star[i]). Also refused if it moves a joint with a motor
+    drive, whose q* the FMU ignores while stepping (a `hold` of it, or a constant column, its
+    start position, is taken)."""
     joints, names = fmu_joints(md)
-    motion = load_motion(path, joints, names)
-    motors = set(motor_joints(md))
+    by_name = {v.name: v for v in md.modelVariables}
+    motors = {i: float(by_name[f"q_star[{i}]"].start or 0.0) for i in motor_joints(md) if f"q_star[{i}]" in by_name}
+    motion = load_motion(path, joints, names, motors)
     moved = [i for i in moving_joints(motion) if i in motors]
+    if moved and isinstance(motion, SplineMotion):
+        i = moved[0]
+        raise MotionError(
+            f"{motion.source}: column q_star[{i}]: joint {i} has a motor drive: the FMU ignores its q_star while "
+            f"stepping (it is only the start position), the motor torque tau_m[{i}] drives it; leave the column "
+            f"out (joint {i} then starts at the FMU's start value q_star[{i}] = {motors[i]:g}) or make it constant "
+            f"(its start position), and give the torque as a column tau_m[{i}]"
+        )
     if moved:
         i = moved[0]
         raise MotionError(
@@ -633,6 +759,9 @@ def load_motion_for(path, md):
             f"stepping (it is only the start position), the motor torque tau_m[{i}] drives it; "
             f"give joint {i} a `hold` (its start position) and set tau_m[{i}] instead"
         )
+    torques = getattr(motion, "torques", None)
+    if torques is not None:
+        torques.references = [by_name[name].valueReference for name in torques.names]
     return motion
 
 
@@ -651,3 +780,94 @@ def motion_identity(path) -> dict:
     if isinstance(name, str) and (path.parent / name).is_file():
         out["csv_sha256"] = hashlib.sha256((path.parent / name).read_bytes()).hexdigest()
     return out
+
+
+# ---------------------------------------------------------------------------
+# the reference motion is for the reference arm only
+
+REFERENCE_MODEL = Path(__file__).resolve().parents[2] / "models" / "reference_rrpr.toml"
+KINEMATIC_KEYS = ("type", "theta", "d", "a", "alpha")  # what makes a [[joint]] of a model file the reference arm's
+
+
+def _kinematics(doc: dict):
+    """[(type, theta, d, a, alpha), ...] of a model file's [[joint]] array; None for a model
+    without one (a URDF arm's)."""
+    joints = doc.get("joint")
+    if not isinstance(joints, list) or not all(isinstance(j, dict) for j in joints):
+        return None
+    return [tuple(j.get(k) for k in KINEMATIC_KEYS) for j in joints]
+
+
+def _fmu_model(fmu) -> dict:
+    """The model file the FMU ``fmu`` (a .fmu file, or the directory it is unpacked in) was built
+    from, its resources/model.toml, parsed; OSError, KeyError, zipfile.BadZipFile or
+    tomllib.TOMLDecodeError if it cannot be read."""
+    fmu = Path(fmu)
+    if fmu.is_dir():
+        text = (fmu / "resources" / "model.toml").read_text(encoding="utf-8")
+    else:
+        with zipfile.ZipFile(fmu) as z:
+            text = z.read("resources/model.toml").decode("utf-8")
+    return tomllib.loads(text)
+
+
+def reference_motion_refusal(fmu) -> str | None:
+    """Why the reference arm's cycloids (:func:`reference_inputs`, the default motion of
+    ``stickslip simulate`` and :func:`stickslip.simulate.run`) must not drive the FMU ``fmu`` (a
+    .fmu file, or the directory it is unpacked in): None if the model it was built from
+    (resources/model.toml) has the reference arm's joints, those of models/reference_rrpr.toml:
+    4 joints R R P R with its DH geometry (type, theta, d, a, alpha; the drives may differ, as
+    in models/reference_rrpr_motor.toml); else one line saying what it is and what to give
+    instead (``--motion MOTION.toml``, and for an FMU with motor drives their tau_m columns)."""
+    from fmpy import read_model_description
+
+    from .fmi3 import is_fmi3, scalar_view
+
+    try:
+        md = read_model_description(str(fmu))
+    except Exception as e:  # noqa: BLE001 -- any unreadable FMU
+        return f"{fmu}: not a readable FMU ({' '.join(str(e).split())})"
+    if is_fmi3(md):
+        md = scalar_view(md)
+    joints, _ = fmu_joints(md)
+    motors = motor_joints(md)
+    try:
+        model = _fmu_model(fmu)
+        what = None
+    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError) as e:
+        model, what = {}, f"it has no readable resources/model.toml ({' '.join(str(e).split())})"
+    except tomllib.TOMLDecodeError as e:
+        model, what = {}, f"its resources/model.toml is not valid TOML ({' '.join(str(e).split())})"
+    reference = tomllib.loads(REFERENCE_MODEL.read_text(encoding="utf-8"))
+    if what is None:
+        mine, theirs = _kinematics(model), _kinematics(reference)
+        name = model.get("name", "?")
+        if mine == theirs:
+            return None
+        if mine is None:
+            what = f"its model `{name}` is " + (
+                f"a URDF arm of {joints} joints" if "urdf" in model else f"an arm of {joints} joints"
+            )
+        elif len(mine) != len(theirs) or [j[0] for j in mine] != [j[0] for j in theirs]:
+            kinds = " ".join({"revolute": "R", "prismatic": "P"}.get(j[0], "?") for j in mine)
+            what = f"its model `{name}` has {len(mine)} joints ({kinds})"
+        else:
+            i = next(k for k, (a, b) in enumerate(zip(mine, theirs, strict=True), 1) if a != b)
+            what = f"its model `{name}` has joint {i} at another place than the reference arm's (theta, d, a, alpha)"
+    kinds = " ".join({"revolute": "R", "prismatic": "P"}.get(j[0], "?") for j in _kinematics(reference))
+    line = (
+        f"{fmu}: {what}, not the reference arm (4 joints {kinds}, models/reference_rrpr.toml) whose cycloids are "
+        f"the default motion: give --motion MOTION.toml, a motion of this arm's {joints} joints (docs/motion.md; "
+        f"examples/motions/)"
+    )
+    if motors:
+        line += (
+            f"; its motor drives on joints {', '.join(map(str, motors))} take their torques from the motion's CSV, "
+            f"columns {', '.join(f'tau_m[{i}]' for i in motors)} (or held at --set tau_m[i]=VALUE)"
+        )
+    return line
+
+
+def runs_reference_motion(fmu) -> bool:
+    """Whether the reference arm's cycloids may drive the FMU ``fmu`` (:func:`reference_motion_refusal`)."""
+    return reference_motion_refusal(fmu) is None
