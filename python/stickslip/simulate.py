@@ -17,12 +17,19 @@ arm's cycloids; its number of joints is checked against the FMU's. Without ``--e
 run lasts the file's ``end``, else until the motion is at rest plus its ``settle`` (0.5 s).
         [--check-convergence [--convergence-threshold 0.003]]
 
+Without ``--motion`` the reference arm's cycloids drive the FMU, which must then have the
+reference arm's joints (:func:`stickslip.motion.reference_motion_refusal`: the reference FMU
+and its motor variant); any other FMU needs ``--motion``.
+
 An FMU with motor drives (inputs ``tau_m[i]``, e.g. one of models/reference_rrpr_motor.toml)
-runs with the motor torques held at their ``--set tau_m[i]=VALUE`` (default 0) and ``--set
-static_start=true`` if wanted; the motion's q* of a motor joint is its start position only, and
-a motion file that moves a motor joint is refused. A ``--set`` the FMU refuses or does not
-know, a motion file that does not fit the FMU and a step the FMU refuses end the command with
-one line on stderr (exit status 2).
+runs with the motor torques of the motion file's CSV (columns ``tau_m[i]``, a cubic spline
+whose value and first two derivatives are set at every communication point), the others held
+at their ``--set tau_m[i]=VALUE`` (default 0), and ``--set static_start=true`` if wanted; the
+motion's q* of a motor joint is its start position only, and a motion file that moves a motor
+joint is refused, as is a ``--set tau_m[i]`` for a torque the motion gives. A ``--set`` the FMU
+refuses or does not know, a motion file that does not fit the FMU, an FMU without the reference
+arm's joints and no ``--motion``, and a step the FMU refuses end the command with one line on
+stderr (exit status 2).
 
 ``--check-convergence`` runs the motion a second time with a tenfold tighter
 ``error_tolerance`` (fixed sub-steps: halved), prints the relative spread of every
@@ -43,7 +50,15 @@ from pathlib import Path
 
 from .convergence import DEFAULT_THRESHOLD
 from .fmu import DEFAULT_FMU, ROOT, LogCapture, communication_points, initialize, input_references
-from .motion import RUN_TIME, MotionError, load_motion_for, motor_joints, reference_inputs
+from .motion import (
+    RUN_TIME,
+    MotionError,
+    load_motion_for,
+    motion_torques,
+    motor_joints,
+    reference_inputs,
+    reference_motion_refusal,
+)
 from .progress import Progress
 
 
@@ -60,12 +75,14 @@ def run(
 
     ``parameters`` maps FMU variable names (``mu_k[3]``, ``h_max``, ...) to
     values set before initialization; ``inputs(t, interval)`` returns (q*, q*', q*'')
-    per joint at t (:mod:`stickslip.motion`). ``motion``: the path of a motion file
-    (docs/motion.md), checked against this FMU's joints, used instead of ``inputs``; with it
-    ``end = None`` means the file's stop time. ``progress``: a label for the progress on stderr
-    (:class:`stickslip.progress.Progress`: a bar on a terminal, else a line per 10 % of the
-    steps), None for none. Returns a dict: ``time`` and every output by
-    name, as lists (Booleans as 0/1). What the FMU refuses raises fmpy's FMICallException with
+    per joint at t (:mod:`stickslip.motion`; a motion file's ``torques`` too, for the motor
+    drives). The default, the reference arm's cycloids, is refused with ValueError for an FMU
+    without the reference arm's joints (:func:`stickslip.motion.reference_motion_refusal`).
+    ``motion``: the path of a motion file (docs/motion.md), checked against this FMU's joints,
+    used instead of ``inputs``; with it ``end = None`` means the file's stop time. ``progress``:
+    a label for the progress on stderr (:class:`stickslip.progress.Progress`: a bar on a
+    terminal, else a line per 10 % of the steps), None for none. Returns a dict: ``time`` and
+    every output by name, as lists (Booleans as 0/1). What the FMU refuses raises fmpy's FMICallException with
     the FMU's logged fmi2Error/fmi2Fatal messages in its attribute ``fmu_messages``.
     """
     from fmpy import extract, read_model_description
@@ -81,6 +98,12 @@ def run(
         md = scalar_view(md)
     if motion is not None:
         inputs = load_motion_for(motion, md)
+    elif inputs is reference_inputs:
+        refusal = reference_motion_refusal(fmu)
+        if refusal:
+            raise ValueError(refusal)
+    if fmi3 and motion_torques(inputs):
+        raise ValueError(f"{fmu}: motor torques from a motion file are set on the FMI 2.0 FMU only")
     if end is None:
         end = getattr(inputs, "stop_time", RUN_TIME)
     in_vrs = input_references(md)
@@ -152,8 +175,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--motion",
         metavar="MOTION.toml",
-        help="drive the FMU with this motion file (docs/motion.md: "
-        "per joint a cycloid or a hold, or a CSV of t, q_star[1..n]); default: the reference arm's cycloids",
+        help="drive the FMU with this motion file (docs/motion.md: per joint a cycloid or a hold, or a CSV of "
+        "t, q_star[1..n] and the motor drives' tau_m[i]); default: the reference arm's cycloids, for an FMU "
+        "with the reference arm's joints only (any other FMU needs --motion)",
     )
     p.add_argument(
         "--end",
@@ -185,28 +209,42 @@ def main(a: argparse.Namespace) -> int:
     the FMU, a step the FMU refuses) ends it with one line on stderr and exit status 2."""
     from fmpy.fmi1 import FMICallException
 
-    parameters = {}
+    parameters, given = {}, {}
     for item in a.set:
         name, eq, value = item.partition("=")
         try:
             if not eq or not name:
                 raise ValueError
             parameters[name] = value.lower() == "true" if value.lower() in ("true", "false") else float(value)
+            given[name] = item
         except ValueError:
             print(
                 f"stickslip simulate: --set {item!r}: expected NAME=VALUE with a number, true or false", file=sys.stderr
             )
             return 2
     inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
-    if a.motion is not None:
+    if a.motion is None:
+        refusal = reference_motion_refusal(a.fmu)
+        if refusal:
+            print(f"stickslip simulate: {refusal}", file=sys.stderr)
+            return 2
+    else:
         try:
             inputs = motion_of(a.motion, a.fmu)
         except MotionError as e:
             print(f"stickslip simulate: {e}", file=sys.stderr)
             return 2
+        clash = [name for name in motion_torques(inputs) if name in parameters]
+        if clash:
+            print(
+                f"stickslip simulate: --set {given[clash[0]]} and the motion file {a.motion} both give {clash[0]} "
+                f"(a column of its CSV): give it once, drop the --set or the column",
+                file=sys.stderr,
+            )
+            return 2
         label, end = f"motion {a.motion}", inputs.stop_time if a.end is None else a.end
         print(f"motion: {inputs.describe()}; simulating {end:g} s")
-    note = motor_note(a.fmu, parameters)
+    note = motor_note(a.fmu, parameters, motion_torques(inputs))
     if note:
         print(note)
     wall = time.perf_counter()
@@ -238,10 +276,11 @@ def main(a: argparse.Namespace) -> int:
     return 0
 
 
-def motor_note(fmu, parameters: dict) -> str | None:
+def motor_note(fmu, parameters: dict, replayed=()) -> str | None:
     """For an FMU with motor drives, the line that says which joints they drive and the motor
-    torques the run holds (``--set tau_m[i]=VALUE``, else the FMU's start value); None for
-    another FMU (or one fmpy cannot read: :func:`run` reports that)."""
+    torques of the run: those the motion gives (``replayed``, names tau_m[i]), the others held
+    (``--set tau_m[i]=VALUE``, else the FMU's start value); None for another FMU (or one fmpy
+    cannot read: :func:`run` reports that)."""
     from fmpy import read_model_description
 
     try:
@@ -252,13 +291,15 @@ def motor_note(fmu, parameters: dict) -> str | None:
     if not motors:
         return None
     start = {v.name: v.start for v in md.modelVariables}
+    held = [i for i in motors if f"tau_m[{i}]" not in replayed]
     torques = ", ".join(
-        f"tau_m[{i}] = {float(parameters.get(f'tau_m[{i}]', start[f'tau_m[{i}]'] or 0.0)):g}" for i in motors
+        f"tau_m[{i}] = {float(parameters.get(f'tau_m[{i}]', start[f'tau_m[{i}]'] or 0.0)):g}" for i in held
     )
-    return (
-        f"motor drives on joints {', '.join(map(str, motors))}: the motion's q* is their start position "
-        f"only; the motors run on {torques} N.m, held constant (--set tau_m[i]=VALUE)"
-    )
+    line = f"motor drives on joints {', '.join(map(str, motors))}: the motion's q* is their start position only; "
+    if replayed:
+        line += f"the motors run on {', '.join(replayed)} of the motion's CSV (a cubic spline, with its derivatives)"
+        return line + (f", and on {torques} N.m, held constant (--set tau_m[i]=VALUE)" if held else "")
+    return line + f"the motors run on {torques} N.m, held constant (--set tau_m[i]=VALUE)"
 
 
 def motion_of(path, fmu):
