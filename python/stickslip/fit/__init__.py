@@ -63,7 +63,10 @@ def fit(
     digest = content_hash(fmu_data)
     md = spec.model_description
     flexible = sorted(int(v.name[8:-1]) for v in md.modelVariables if v.name.startswith("q_start["))
-    payloads = [payload_of(e) for e in spec.experiments]
+    known = {e.name: e.initial for e in spec.estimates}
+    payloads = [payload_of(e, md, unpacked(fmu_data, digest), known) for e in spec.experiments]
+    for e, p in zip(spec.experiments, payloads, strict=True):
+        say(f"fit: experiment {e.name!r} starts " + _start_text(e, p))
     own_cluster = None
     if client is None and workers != 0:
         from ..cluster import connect
@@ -80,9 +83,9 @@ def fit(
         if shooting == "multiple" and any(s is None for s in segments):
             motors = motor_joints(md)
             raise FitSpecError(
-                f'{spec.source}: [options] shooting = "multiple" needs every flexible joint\'s q measured '
-                f"(q[{'], q['.join(map(str, flexible))}]) in every experiment, and no motor drives"
-                + (f" (this FMU has them on joints {motors})" if motors else "")
+                f'{spec.source}: [options] shooting = "multiple" needs every flexible and motor joint\'s q measured '
+                f"(q[{'], q['.join(map(str, flexible))}]) in every experiment"
+                + (f" (motor drives on joints {motors}: their rotors start from the link's)" if motors else "")
             )
         multiple = shooting == "multiple" or (shooting == "auto" and all(s is not None for s in segments))
         initial = {e.name: e.initial for e in spec.estimates}
@@ -118,6 +121,8 @@ def fit(
             raise FitError("no start reached a finite cost: " + "; ".join(s.message for s in results))
         best = min(finite, key=lambda s: s.cost)
         result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say)
+        result["method"]["start"] = {e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)}
+        result["_internal"]["payloads"] = payloads
     finally:
         if own_cluster is not None:
             client.close()
@@ -127,6 +132,17 @@ def fit(
 
         write(result, spec, Path(out))
     return result
+
+
+def _start_text(experiment, payload) -> str:
+    """How a run of the experiment starts, for the console and the report."""
+    if experiment.start == "rest":
+        return "at the FMU's own start (start = 'rest': spring-driven joints at rest at q = q*)"
+    if experiment.start == "parameters":
+        return "from the start values in its parameters"
+    if payload.start is None:
+        return "at the FMU's own start (no spring-driven joint)"
+    return "from its first samples: " + payload.start.describe()
 
 
 def _probe(spec, payloads: list, fmu_data: bytes, digest: str) -> None:

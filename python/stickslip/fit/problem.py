@@ -21,8 +21,8 @@ import threading
 
 import numpy as np
 
-from ..motion import motor_joints
-from .runner import Payload, RunResult, Segments, run
+from .runner import Payload, RunResult, run
+from .start import segment_starts, start_states
 
 PENALTY = 1e3  # normalized residual of a sample a run did not reach
 
@@ -139,8 +139,12 @@ class Problem:
         where an experiment cannot be restarted from its measurements."""
         with self._lock:
             if segment not in self._segments:
+                from ..fmu import unpacked
+
+                where = unpacked(self.evaluator.fmu_data, self.evaluator.digest)
+                known = {e.name: e.initial for e in self.spec.estimates}
                 self._segments[segment] = [
-                    None if motor_joints(self.spec.model_description) else measured_segments(e, segment, self.flexible)
+                    start_states(e, segment_starts(e.time, segment), self.spec.model_description, where, known, True)
                     for e in self.spec.experiments
                 ]
             return self._segments[segment]
@@ -204,41 +208,23 @@ class Problem:
         return any(r.status != "ok" for r in results)
 
 
-def measured_segments(experiment, segment: float, flexible: list) -> Segments | None:
-    """Multiple-shooting segments of about ``segment`` seconds for an experiment whose
-    flexible joints' q are all measured (else None): start states from a Savitzky-Golay fit
-    of the measured q around each segment's first sample (value and slope)."""
-    from scipy.signal import savgol_filter
-
-    channels = {c.output: c for c in experiment.channels}
-    if not flexible or any(f"q[{i}]" not in channels for i in flexible):
-        return None
-    t = experiment.time
-    dt = float(np.median(np.diff(t)))
-    per = max(2, round(segment / dt))
-    starts = np.arange(0, len(t) - 1, per)
-    if len(starts) > 1 and len(t) - 1 - starts[-1] < per // 2:
-        starts = starts[:-1]  # no stub of a segment at the end
-    window = min(len(t) - (1 - len(t) % 2), max(5, 2 * round(0.004 / dt) + 1))  # about 4 ms each side
-    q0 = np.empty((len(starts), len(flexible)))
-    qd0 = np.empty_like(q0)
-    for j, i in enumerate(flexible):
-        y = channels[f"q[{i}]"].values
-        smooth = savgol_filter(y, window, 3, mode="interp")
-        slope = savgol_filter(y, window, 3, deriv=1, delta=dt, mode="interp")
-        q0[:, j], qd0[:, j] = smooth[starts], slope[starts]
-    return Segments(starts, list(flexible), q0, qd0)
-
-
-def payload_of(experiment) -> Payload:
+def payload_of(experiment, md=None, unzipdir=None, known: dict | None = None, outputs=None) -> Payload:
+    """The Payload of an experiment: its inputs, known parameters, the outputs ``outputs``
+    (default: its measured channels), and its start state (:mod:`stickslip.fit.start`) where
+    it starts from its data (``md``: the FMU's model description, ``unzipdir``: the unpacked
+    FMU, for the rotors' start)."""
+    start = None
+    if experiment.start == "data" and md is not None:
+        start = start_states(experiment, [0], md, unzipdir, known)
     return Payload(
         experiment.name,
         experiment.time,
         experiment.motion,
         experiment.torques,
-        [c.output for c in experiment.channels],
+        list(outputs) if outputs is not None else [c.output for c in experiment.channels],
         dict(experiment.parameters),
+        start,
     )
 
 
-__all__ = ["PENALTY", "Evaluator", "Problem", "RunResult", "Transform", "measured_segments", "payload_of"]
+__all__ = ["PENALTY", "Evaluator", "Problem", "RunResult", "Transform", "payload_of"]

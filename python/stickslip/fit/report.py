@@ -168,6 +168,7 @@ def report_md(result: dict, spec, figures: list) -> str:
             f"{number(s.get('cost_after_continuation'))} | {number(s['cost'])} | {s['status']} |"
         )
     lines += ["", "## Method", ""]
+    lines += [f"- Experiment {name!r} starts {how}." for name, how in m.get("start", {}).items()]
     lines += [f"- {note}" for note in m["equation_error_stage"]]
     lines.append(
         f"- Jacobian: forward differences of step {m['diff_step']:g} (of each normalized range); with a 3x step "
@@ -217,10 +218,14 @@ def _plots(result: dict, spec, out: Path) -> list:
         values["error_tolerance"] = result["method"]["error_tolerance"]
     md = spec.model_description
     sticks = [v.name for v in md.modelVariables if v.name.startswith("stick[") and v.causality == "output"]
-    for e in spec.experiments:
+    for k_experiment, e in enumerate(spec.experiments):
         outputs = [c.output for c in e.channels] + sticks
+        start = result["_internal"]["payloads"][k_experiment].start if "payloads" in result["_internal"] else None
         res = run(
-            digest, Payload(e.name, e.time, e.motion, e.torques, outputs, dict(e.parameters)), values, fmu_data=data
+            digest,
+            Payload(e.name, e.time, e.motion, e.torques, outputs, dict(e.parameters), start),
+            values,
+            fmu_data=data,
         )
         n = len(e.channels)
         fig, axes = plt.subplots(2 * n, 1, figsize=(9, 2.6 * 2 * n), sharex=True, squeeze=False)

@@ -6,12 +6,14 @@ runs pay for one instantiation per worker. A run never raises: what the FMU refu
 discards becomes the result's ``status`` with the FMU's reason, the samples not reached are
 NaN.
 
-Single shooting runs the whole experiment from its start (the flexible joints at rest,
-q = q*, as the FMU starts by default). Multiple shooting runs it in segments, each started
-from the measured state at its first sample (``use_start_values``, ``q_start[i]`` and
-``qd_start[i]`` of every flexible joint): the simulated motion cannot drift from the
-measured one for longer than a segment, so a stick-slip pattern that differs early does
-not decide the cost of everything after it.
+Single shooting runs the whole experiment from its start: the measured state at its first
+sample (``payload.start``, :mod:`stickslip.fit.start`), or the FMU's own start (every
+spring-driven joint at rest at q = q*) where the experiment says ``start = "rest"``.
+Multiple shooting runs it in segments, each started from the measured state at its first
+sample (``use_start_values``, ``q_start[i]`` and ``qd_start[i]`` of every flexible and motor
+joint, ``theta_m_start[i]`` and ``omega_m_start[i]`` of every rotor): the simulated motion
+cannot drift from the measured one for longer than a segment, so a stick-slip pattern that
+differs early does not decide the cost of everything after it.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
+
+from .start import Segments
 
 STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
@@ -34,6 +38,7 @@ class Payload:
     torques: object
     outputs: list
     fixed: dict  # known parameters and settings, set in every run
+    start: Segments | None = None  # the start state from the data (single shooting), or None
 
     def inputs(self) -> tuple:
         """The drive inputs at every sample, computed once per process: (q*, q*', q*'') as one
@@ -57,17 +62,6 @@ class Payload:
 
     def __getstate__(self):
         return {k: v for k, v in self.__dict__.items() if k != "_inputs"}
-
-
-@dataclass
-class Segments:
-    """Multiple shooting: segment k covers samples starts[k] .. starts[k+1] (the last one to
-    the end); q_start / qd_start: (segments, flexible joints) at each segment's first sample."""
-
-    starts: np.ndarray
-    joints: list
-    q_start: np.ndarray
-    qd_start: np.ndarray
 
 
 @dataclass
@@ -148,7 +142,8 @@ def run(
     digest: str, payload: Payload, parameters: dict, segments: Segments | None = None, fmu_data: bytes | None = None
 ) -> RunResult:
     """The outputs ``payload.outputs`` at every sample of the experiment, with ``parameters``
-    (and the payload's fixed ones) set; in segments when ``segments`` is given."""
+    (and the payload's fixed ones) set; in segments when ``segments`` is given, else from the
+    payload's start state (when it has one)."""
     from fmpy.fmi1 import FMICallException
 
     n = len(payload.time)
@@ -157,10 +152,11 @@ def run(
         inst = _instance(_unzipdir(digest, fmu_data))
     except Exception as e:  # noqa: BLE001 -- a result, never a crash
         return RunResult(values, "error", f"FMU not available here: {type(e).__name__}: {e}", 0)
+    segments = segments if segments is not None else payload.start
     bounds = [(0, n - 1)] if segments is None else _bounds(segments.starts, n)
     reached = 0
     for k, (first, last) in enumerate(bounds):
-        start = None if segments is None else (segments.joints, segments.q_start[k], segments.qd_start[k])
+        start = None if segments is None else (segments, k)
         try:
             reached += _run_span(inst, payload, parameters, first, last, start, values)
         except _Refused as e:
@@ -201,10 +197,19 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
         except FMICallException as e:
             raise _Refused(f"{name} = {value!r}: {inst.reason(str(e))}") from None
     if start is not None:
-        joints, q0, qd0 = start
+        segments, k = start
+        joints = segments.joints
         set_value(slave, inst.by_name["use_start_values"], True)
-        slave.setReal([inst.vr(f"q_start[{i}]") for i in joints], [float(x) for x in q0])
-        slave.setReal([inst.vr(f"qd_start[{i}]") for i in joints], [float(x) for x in qd0])
+        slave.setReal([inst.vr(f"q_start[{i}]") for i in joints], [float(x) for x in segments.q_start[k]])
+        slave.setReal([inst.vr(f"qd_start[{i}]") for i in joints], [float(x) for x in segments.qd_start[k]])
+        if segments.motors:
+            known = {**payload.fixed, **parameters}
+
+            def value(name):
+                return known[name] if name in known else float(inst.by_name[name].start or 0.0)
+
+            rotor = segments.rotor(k, value)
+            slave.setReal([inst.vr(name) for name in rotor], [float(x) for x in rotor.values()])
     set_drive, set_torques = _input_setter(slave, inst, payload)
     try:
         slave.enterInitializationMode()

@@ -1,0 +1,191 @@
+"""The state an experiment (or a multiple-shooting segment) starts from, read off its samples.
+
+A real run does not start where the FMU starts by default (every spring-driven joint at
+q = q*, at rest, its spring unloaded): the arm stands deflected under gravity, or moves. So
+by default (``start = "data"`` of an ``[[experiment]]``) every run of a fit and of a replay
+starts from the measured state at its first sample:
+
+* a flexible or motor joint whose link q is measured: where it stands still (its samples stay
+  within three noise standard deviations of their median for REST_SAMPLES samples from there
+  on, an outlier apart:
+  :func:`resting`), at rest at the mean of those samples, so that an arm at rest starts at
+  rest and its joints' stiction decides, as at a real start; where its samples stand within
+  the same noise band of the command q*, at q* itself (the FMU's own start position: a
+  sample cannot tell the two apart, and a start position off by a fraction of the noise,
+  the mean's error or a creep within the band, would shift every breakaway by k·δq, a bias
+  no standard error covers); else q and q̇ from the derivative
+  filter (:mod:`stickslip.fit.filtering`) at that sample, a q̇ within three times the standard
+  deviation the filter leaves of the channel's noise taken as 0;
+* such a joint whose q is not measured: the command q*, q̇* (the FMU's own start);
+* a motor joint's rotor: turned so that its gear spring carries the joint's load at that
+  state, θ_m = N·(q + F/k + sgn(F)·Δ), spinning at ω_m = N·q̇ (the gear's deflection rate is
+  left out), with F the generalized force of the joint by the engine's inverse dynamics at the
+  measured (q, q̇, q̈) (the other joints at their measurements or commands), the link's
+  friction left out (it is what the fit estimates; at rest, stiction holds the difference).
+  This is the FMU's ``static_start`` for an arm at rest, and its generalization to one in
+  motion. k and Δ are the run's own values (they may be estimated), so θ_m is completed in
+  :func:`stickslip.fit.runner.run` from the F stored here.
+
+``start = "rest"`` keeps the FMU's own start; start values in the experiment's
+``parameters`` (use_start_values, q_start[i], ...) are set as given.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+NOISE_SIGMAS = 3.0  # a filtered q̇ within this many of its noise standard deviations is 0
+REST_SAMPLES = 7  # a joint whose q stays within NOISE_SIGMAS noise for this many samples is at rest
+
+
+@dataclass
+class Segments:
+    """Start states at samples ``starts`` (single shooting: [0]; multiple shooting: each
+    segment's first sample; segment k runs to starts[k+1], the last to the end).
+
+    ``joints``: the spring-driven joints (1-based) set through q_start / qd_start, with
+    ``q_start`` / ``qd_start`` of shape (segments, joints); ``motors``: the motor joints among
+    them, with ``gear_force`` (segments, motors), the joint's load F at the start, and
+    ``gear_ratio`` (motors) their N."""
+
+    starts: np.ndarray
+    joints: list
+    q_start: np.ndarray
+    qd_start: np.ndarray
+    motors: list = field(default_factory=list)
+    gear_force: np.ndarray | None = None
+    gear_ratio: list = field(default_factory=list)
+    measured: list = field(default_factory=list)  # joints whose start came from their measured q
+
+    def rotor(self, k: int, values) -> dict:
+        """theta_m_start[i], omega_m_start[i] of segment k, with the gear's k[i] and Delta[i]
+        from ``values(name)`` (the run's parameter values)."""
+        out = {}
+        for m, i in enumerate(self.motors):
+            j = self.joints.index(i)
+            q, qd, force, ratio = self.q_start[k, j], self.qd_start[k, j], self.gear_force[k, m], self.gear_ratio[m]
+            stiffness, clearance = float(values(f"k[{i}]")), float(values(f"Delta[{i}]") or 0.0)
+            deflection = force / stiffness + math.copysign(clearance, force) if force != 0.0 else 0.0
+            out[f"theta_m_start[{i}]"] = ratio * (q + deflection)
+            out[f"omega_m_start[{i}]"] = ratio * qd
+        return out
+
+    def describe(self) -> str:
+        parts = []
+        if self.measured:
+            parts.append(f"joints {self.measured} at their filtered measured q, q'")
+        others = [i for i in self.joints if i not in self.measured]
+        if others:
+            parts.append(f"joints {others} at their commands")
+        if self.motors:
+            parts.append(f"rotors {self.motors} turned to carry the joints' load (inverse dynamics)")
+        return "; ".join(parts)
+
+
+def spring_joints(md) -> tuple:
+    """(the joints with a q_start parameter: flexible and motor drives, the motor joints)."""
+    from ..motion import motor_joints
+
+    joints = sorted(int(v.name[8:-1]) for v in md.modelVariables if v.name.startswith("q_start["))
+    return joints, [i for i in motor_joints(md) if i in joints]
+
+
+def start_states(experiment, starts, md, unzipdir=None, known: dict | None = None, require_measured=False):
+    """The :class:`Segments` of ``experiment`` at the samples ``starts``; None where
+    ``require_measured`` and a spring-driven joint's q is not measured (multiple shooting
+    needs every one), or where the FMU has no spring-driven joint. ``unzipdir``: the unpacked
+    FMU, whose binary gives the inverse dynamics of a motor joint's load; ``known``: the
+    parameter values the inverse dynamics take (masses, ...)."""
+    from .filtering import derivatives
+
+    joints, motors = spring_joints(md)
+    if not joints:
+        return None
+    channels = {c.output: c for c in experiment.channels}
+    measured = [i for i in joints if f"q[{i}]" in channels]
+    if require_measured and len(measured) < len(joints):
+        return None
+    t = experiment.time
+    starts = np.asarray(starts, dtype=int)
+    cmd = np.array(
+        [
+            np.concatenate([np.asarray(x, dtype=np.float64) for x in experiment.motion(float(tk), 0.0)])
+            for tk in t[starts]
+        ]
+    )
+    n = cmd.shape[1] // 3
+    q, qd, qdd = cmd[:, :n].copy(), cmd[:, n : 2 * n].copy(), cmd[:, 2 * n :].copy()
+    for i in motors:  # the command of a motor joint is its start position only
+        qd[:, i - 1] = 0.0
+        qdd[:, i - 1] = 0.0
+    rng = np.random.default_rng(0)
+    for i in measured:
+        c = channels[f"q[{i}]"]
+        value, rate, accel = derivatives(t, c.values, experiment.derivatives)
+        noise = derivatives(t, rng.normal(0.0, c.std, len(t)), experiment.derivatives)[1]
+        slow = np.abs(rate[starts]) <= NOISE_SIGMAS * float(np.std(noise))
+        for row, k in enumerate(starts):
+            held = resting(c.values, int(k), NOISE_SIGMAS * c.std)
+            if held is not None:  # the joint stands still from this sample on
+                position, _ = held
+                if abs(position - q[row, i - 1]) <= NOISE_SIGMAS * c.std:
+                    position = q[row, i - 1]  # where its command puts it: the data cannot tell them apart
+                q[row, i - 1], qd[row, i - 1], qdd[row, i - 1] = position, 0.0, 0.0
+            else:
+                q[row, i - 1] = value[k]
+                qd[row, i - 1] = 0.0 if slow[row] else rate[k]
+                qdd[row, i - 1] = 0.0 if slow[row] else accel[k]
+    columns = [i - 1 for i in joints]
+    force, ratios = None, []
+    if motors:
+        from .idim import RIGID_BODY, inverse_dynamics, joint_of
+
+        if unzipdir is None:
+            raise ValueError("the start of a motor joint needs the FMU's binary (its inverse dynamics)")
+        start = {v.name: v.start for v in md.modelVariables}
+        values = {**{k: v for k, v in start.items() if v is not None}, **(known or {}), **experiment.parameters}
+        settings = [f"{k}={float(v)!r}" for k, v in values.items() if (joint_of(k) or ("",))[0] in RIGID_BODY]
+        tau, _ = inverse_dynamics(unzipdir, np.hstack([q, qd, qdd]), settings)
+        force = tau[:, [i - 1 for i in motors]]
+        ratios = [float(values.get(f"gear_ratio[{i}]", 1.0)) for i in motors]
+    return Segments(starts, list(joints), q[:, columns], qd[:, columns], list(motors), force, ratios, measured)
+
+
+def resting(values, k: int, tolerance: float, samples: int = REST_SAMPLES):
+    """(position, samples averaged) of a joint that stands still at sample k, or None.
+
+    Still: of the ``samples`` samples from k on, all but a fifth (an outlier of the encoder,
+    at least one) lie within ``tolerance`` of their median. The position is the mean of the
+    samples within that band over the still run around k, which ends (either way) where
+    fewer than half of ``samples`` consecutive samples stay in the band: a joint that creeps
+    away within the noise pulls the mean by a fraction of the noise, an outlier not at all."""
+    y = np.asarray(values)
+    if k + samples > len(y):
+        return None
+    anchor = float(np.median(y[k : k + samples]))  # not sample k alone: its own noise
+    near = np.abs(y - anchor) <= tolerance
+    if near[k : k + samples].sum() < samples - max(1, samples // 5):
+        return None
+    end = k + samples
+    while end < len(y) and near[end : end + samples].mean() >= 0.5:
+        end += 1
+    begin = k
+    while begin > 0 and near[max(0, begin - samples) : begin].mean() >= 0.5:
+        begin -= 1
+    run = y[begin:end][near[begin:end]]
+    return float(np.mean(run)), len(run)
+
+
+def segment_starts(time, segment: float) -> np.ndarray:
+    """The first samples of multiple-shooting segments of about ``segment`` seconds (at least
+    two samples each; no stub of less than half a segment at the end)."""
+    t = np.asarray(time)
+    dt = float(np.median(np.diff(t)))
+    per = max(2, round(segment / dt))
+    starts = np.arange(0, len(t) - 1, per)
+    if len(starts) > 1 and len(t) - 1 - starts[-1] < per // 2:
+        starts = starts[:-1]
+    return starts
