@@ -392,6 +392,108 @@ def test_motion_csv_refused(tmp_path, case):
     assert message in str(e.value), str(e.value)
 
 
+MOTORS = {1: 0.0, 3: 0.8}  # the motor joints of a 4-joint FMU like reference_rrpr_motor, their start q*
+HEAD_MOTOR = "t,q_star[2],q_star[4],tau_m[1],tau_m[3]\n"
+REFUSED_TORQUE_CSV = {  # with motor drives on joints 1 and 3 (None: on no joint)
+    "tau_m of a joint without motor drive": (
+        MOTORS,
+        "t,q_star[2],q_star[4],tau_m[2]\n0,0,0,0\n1,1,1,1\n",
+        "line 1, column 4: 'tau_m[2]': joint 2 has no motor drive; the FMU's motor drives are on joints 1, 3 "
+        "(tau_m[1], tau_m[3])",
+    ),
+    "tau_m without motor drives": (
+        None,
+        HEAD4.strip() + ",tau_m[1]\n0,0,0,0,0,0\n1,1,1,1,1,1\n",
+        "line 1, column 6: 'tau_m[1]': joint 1 has no motor drive; the FMU has no motor drives (no input "
+        "tau_m[i]): the columns are t, then q_star[1]..q_star[4]",
+    ),
+    "unknown column": (
+        MOTORS,
+        "t,q_star[2],q_star[4],torque[1]\n0,0,0,0\n1,1,1,1\n",
+        "line 1, column 4: unknown column 'torque[1]'; the columns are t, then q_star[1]..q_star[4], and the "
+        "motor torques tau_m[1], tau_m[3]",
+    ),
+    "torque twice": (
+        MOTORS,
+        "t,q_star[2],q_star[4],tau_m[1],tau_m[1]\n0,0,0,0,0\n1,1,1,1,1\n",
+        "line 1, column 5: 'tau_m[1]' is given twice (columns 4 and 5)",
+    ),
+    "nan torque": (
+        MOTORS,
+        HEAD_MOTOR + "0,0,0,0,0\n0.2,1,1,NaN,1\n",
+        "line 3: tau_m[1] = NaN: must be a finite number",
+    ),
+    "inf torque": (MOTORS, HEAD_MOTOR + "0,0,0,0,0\n0.2,1,1,1,-inf\n", "line 3: tau_m[3] = -inf: must be a finite"),
+    "missing q_star of a rigid joint": (
+        MOTORS,
+        "t,q_star[2],tau_m[1]\n0,0,0\n1,1,1\n",
+        "line 1: no column q_star[4]: joint 4 has no motor drive, the motion gives its drive position; every such "
+        "joint needs its column (only a motor joint, 1, 3, may leave its q_star out",
+    ),
+    "short row": (MOTORS, HEAD_MOTOR + "0,0,0,0,0\n1,1,1,1\n", "line 3: 4 values, expected 5 (the header's columns)"),
+}
+
+
+@pytest.mark.parametrize("case", list(REFUSED_TORQUE_CSV))
+def test_motion_csv_with_torques_refused(tmp_path, case):
+    motors, text, message = REFUSED_TORQUE_CSV[case]
+    write(tmp_path / "m.csv", text)
+    path = write(tmp_path / "m.toml", 'csv = "m.csv"\n')
+    with pytest.raises(MotionError) as e:
+        load_motion(path, 4, None, motors)
+    assert f"motion file {path}: csv 'm.csv'" in str(e.value)
+    assert message in str(e.value), str(e.value)
+
+
+def test_motion_csv_gives_motor_torques_and_motor_joints_may_leave_out_q_star(tmp_path):
+    """Columns in any order; a motor joint without a q_star column holds its start value (0.8
+    for joint 3) with zero rates; a motor joint with a constant one holds that; the torques are
+    a not-a-knot spline: exact for a cubic in t, held outside the samples."""
+    t = [0.0, 0.05, 0.12, 0.2, 0.31, 0.4]
+    cubic = lambda x: 0.2 - 0.5 * x + 3.0 * x**2 - 4.0 * x**3  # noqa: E731
+    rows = [f"{x!r},{0.3 * x!r},{cubic(x)!r},0.25,{-x!r},-0.1" for x in t]
+    write(tmp_path / "m.csv", "time,q_star[2],tau_m[1],q_star[1],q_star[4],tau_m[3]\n" + "\n".join(rows) + "\n")
+    m = load_motion(write(tmp_path / "m.toml", 'csv = "m.csv"\n'), 4, None, MOTORS)
+    assert isinstance(m, SplineMotion) and m.torques.names == ["tau_m[1]", "tau_m[3]"]
+    assert "motor torques tau_m[1], tau_m[3]" in m.describe()
+    for x in (0.0, 0.07, 0.2, 0.33):
+        q, qd, qdd = m(x)
+        assert (q[0], q[2], qd[0], qd[2], qdd[0], qdd[2]) == (0.25, 0.8, 0.0, 0.0, 0.0, 0.0)
+        assert abs(q[1] - 0.3 * x) < 1e-14 and abs(q[3] + x) < 1e-14
+        value, rate, accel = m.torques(x)
+        assert abs(value[0] - cubic(x)) < 1e-14 and abs(rate[0] - (-0.5 + 6.0 * x - 12.0 * x**2)) < 1e-12
+        assert abs(accel[0] - (6.0 - 24.0 * x)) < 1e-11
+        assert (value[1], rate[1], accel[1]) == (-0.1, 0.0, 0.0)
+    value, rate, accel = m.torques(0.5)
+    assert value[0] == cubic(0.4) and rate[0] == 0.0 and accel[0] == 0.0
+    assert m.torques.references is None  # bound to an FMU by load_motion_for
+
+
+def test_a_torque_motion_binds_to_the_fmus_value_references(tmp_path):
+    """load_motion_for takes the motor joints and their start q* from the modelDescription and
+    sets the torques' value references."""
+    from stickslip.motion import load_motion_for
+
+    variables = [
+        SimpleNamespace(
+            name=f"{g}[{i}]",
+            causality="input",
+            description="",
+            start="0.8" if (g, i) == ("q_star", 3) else "0",
+            valueReference=10 * k + i,
+        )
+        for k, g in enumerate(("q_star", "qd_star", "qdd_star"))
+        for i in range(1, 5)
+    ] + [
+        SimpleNamespace(name=f"tau_m[{i}]", causality="input", description="", start="0", valueReference=90 + i)
+        for i in (1, 3)
+    ]
+    md = SimpleNamespace(modelVariables=variables)
+    write(tmp_path / "m.csv", HEAD_MOTOR + "0,0,0,0,0\n1,1,1,1,1\n")
+    m = load_motion_for(write(tmp_path / "m.toml", 'csv = "m.csv"\n'), md)
+    assert m.torques.references == [91, 93] and m(0.5)[0][2] == 0.8
+
+
 def test_missing_motion_file_and_csv_given_directly_are_refused(tmp_path):
     with pytest.raises(MotionError, match=r"motion file .*no\.toml: no such file"):
         load_motion(tmp_path / "no.toml", 4)
