@@ -187,6 +187,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         f"rest plus its `settle`)",
     )
     p.add_argument("--interval", type=float, default=1e-3)
+    r = p.add_argument_group("replay of measured experiments (docs/calibration.md)")
+    r.add_argument(
+        "--spec",
+        metavar="SPEC.toml",
+        help="replay the experiments of this fit SPEC exactly as the fit runs them (their inputs, known "
+        "parameters and start state), writing OUT/<experiment>.csv and .png and printing the residuals",
+    )
+    r.add_argument("--experiment", action="append", default=[], metavar="NAME", help="only this experiment, repeatable")
+    r.add_argument(
+        "--fitted", metavar="fitted.toml", help="the values a fit wrote ([parameters], [settings]) to replay with"
+    )
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
     p.add_argument(
         "--check-convergence",
@@ -222,6 +233,11 @@ def main(a: argparse.Namespace) -> int:
                 f"stickslip simulate: --set {item!r}: expected NAME=VALUE with a number, true or false", file=sys.stderr
             )
             return 2
+    if a.spec is not None:
+        return replay_main(a, parameters)
+    if a.experiment or a.fitted:
+        print("stickslip simulate: --experiment and --fitted replay a fit SPEC: give --spec SPEC.toml", file=sys.stderr)
+        return 2
     inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
     if a.motion is None:
         refusal = reference_motion_refusal(a.fmu)
@@ -274,6 +290,43 @@ def main(a: argparse.Namespace) -> int:
         elif check.warning():
             print(check.warning(), file=sys.stderr, flush=True)
     return 0
+
+
+def replay_main(a: argparse.Namespace, overrides: dict) -> int:
+    """``stickslip simulate --spec SPEC.toml [--experiment NAME] [--fitted fitted.toml] [--set ...]``:
+    the SPEC's experiments replayed (:mod:`stickslip.fit.replay`) into ``--out`` (a directory;
+    default results/replay). Exit 2 for a SPEC, fitted.toml or --set that cannot be used, 1
+    when a run ends early (the FMU refused or discarded a step), else 0."""
+    from .fit.replay import ReplayError, fitted_values, replay
+    from .fit.spec import FitSpecError, load
+
+    if a.motion is not None or a.end is not None:
+        print(
+            "stickslip simulate: --spec replays the SPEC's own inputs and times: leave out --motion and --end",
+            file=sys.stderr,
+        )
+        return 2
+    out = Path(a.out) if a.out != str(ROOT / "results" / "reference.csv") else ROOT / "results" / "replay"
+    if out.suffix.lower() == ".csv":
+        print(
+            f"stickslip simulate: --out {out}: with --spec, a directory (one CSV and plot per experiment)",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        spec = load(a.spec, replay=True)
+        fitted = fitted_values(a.fitted) if a.fitted else {}
+        report = replay(spec, a.experiment or None, fitted, overrides, out)
+    except (FitSpecError, ReplayError) as e:
+        print(f"stickslip simulate: {e}", file=sys.stderr)
+        return 2
+    failed = [name for name, r in report.items() if r["status"] != "ok"]
+    for name in failed:
+        print(
+            f"stickslip simulate: experiment {name!r}: {report[name]['status']}: {report[name]['message']}",
+            file=sys.stderr,
+        )
+    return 1 if failed else 0
 
 
 def motor_note(fmu, parameters: dict, replayed=()) -> str | None:

@@ -23,7 +23,7 @@ def write(result: dict, spec, out: Path) -> None:
         public = {k: v for k, v in result.items() if not k.startswith("_")}
         (tmp / "fit.json").write_text(json.dumps(_finite(public), indent=2, allow_nan=False, default=_jsonable) + "\n")
         figures = _plots(result, spec, tmp)
-        (tmp / "fitted.toml").write_text(fitted_toml(result, spec))
+        (tmp / "fitted.toml").write_text(fitted_toml(result, spec, out))
         (tmp / "report.md").write_text(report_md(result, spec, figures))
         if out.exists():
             shutil.rmtree(out)
@@ -52,18 +52,21 @@ def _jsonable(x):
     raise TypeError(f"not JSON: {type(x).__name__}")
 
 
-def fitted_toml(result: dict, spec) -> str:
-    """The estimates as ``stickslip simulate --set`` values and as a [parameters] table; the
-    fit's error_tolerance in [settings]; each experiment's known values in [known.<name>]."""
-    values = {name: p["value"] for name, p in result["parameters"].items()}
+def fitted_toml(result: dict, spec, out=None) -> str:
+    """The estimates as a [parameters] table, the fit's error_tolerance in [settings], each
+    experiment's known values in [known.<name>]; the comment at the top gives the command that
+    replays an experiment with them (its inputs, known values and start state, as the fit ran
+    it: stickslip simulate --spec)."""
     tol = result["method"]["error_tolerance"]  # the SPEC's, or the tighter one the fit ended at
     settings = {} if tol is None else {"error_tolerance": tol}
-    lines = ["# The fitted parameters (stickslip fit). To rerun a fitted experiment:"]
+    here = Path(out) / "fitted.toml" if out is not None else Path("fitted.toml")
+    replays = Path(out) / "replay" if out is not None else Path("replay")
+    source = spec.source if Path(spec.source).is_file() else "SPEC.toml"  # a SPEC given as a dict has no file
+    lines = ["# The fitted parameters (stickslip fit). To replay a fitted experiment with them:"]
     for e in spec.experiments:
-        sets = " ".join(f"--set '{n}={_toml_value(v)}'" for n, v in {**settings, **e.parameters, **values}.items())
-        lines.append(f"#   {e.name}: stickslip simulate --fmu {spec.fmu} {sets}")
+        lines.append(f"#   stickslip simulate --spec {source} --experiment '{e.name}' --fitted {here} --out {replays}")
     lines += [
-        "# with the experiment's inputs as a motion file (--motion MOTION.toml).",
+        "# (held-out runs: a SPEC of their experiments, without [estimate], in place of the fit's).",
         "# [parameters]: the estimates (full precision) with their standard errors;",
         "# [settings]: what the fit ran the FMU with; [known.<experiment>]: each experiment's given values.",
         "[parameters]",
@@ -209,6 +212,7 @@ def _plots(result: dict, spec, out: Path) -> list:
     import matplotlib.pyplot as plt
 
     from ..fmu import content_hash
+    from .replay import figure
 
     figures = []
     data = Path(spec.fmu).read_bytes()
@@ -217,52 +221,19 @@ def _plots(result: dict, spec, out: Path) -> list:
     if result["method"]["error_tolerance"] is not None:
         values["error_tolerance"] = result["method"]["error_tolerance"]
     md = spec.model_description
-    sticks = [v.name for v in md.modelVariables if v.name.startswith("stick[") and v.causality == "output"]
-    for k_experiment, e in enumerate(spec.experiments):
-        outputs = [c.output for c in e.channels] + sticks
-        start = result["_internal"]["payloads"][k_experiment].start if "payloads" in result["_internal"] else None
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    payloads = result["_internal"].get("payloads")
+    for k, e in enumerate(spec.experiments):
+        start = payloads[k].start if payloads else None
         res = run(
             digest,
             Payload(e.name, e.time, e.motion, e.torques, outputs, dict(e.parameters), start),
             values,
             fmu_data=data,
         )
-        n = len(e.channels)
-        fig, axes = plt.subplots(2 * n, 1, figsize=(9, 2.6 * 2 * n), sharex=True, squeeze=False)
-        commands = np.array([e.motion(float(t), 0.0)[0] for t in e.time])
-        for k, c in enumerate(e.channels):
-            ax, axr = axes[2 * k, 0], axes[2 * k + 1, 0]
-            joint = c.output[c.output.index("[") :] if "[" in c.output else None
-            # q[i] is shown as the drive's lag q*_i − q_i, where stick-slip is visible.
-            lag = c.output.startswith("q[") and joint is not None
-            base = commands[:, int(joint[1:-1]) - 1] if lag else 0.0
-            ax.plot(e.time, base - c.values, ".", ms=1.5, color="0.4", label=f"measured `{c.column}`")
-            ax.plot(e.time, base - res.values[:, k], lw=1.0, color="C0", label=f"fitted {c.output}")
-            ax.set_ylabel(f"q_star{joint} − {c.output}" if lag else c.output)
-            ax.legend(loc="best", fontsize=8)
-            axr.plot(e.time, (res.values[:, k] - c.values) / c.std, lw=0.6, color="C3")
-            axr.axhline(0, color="0.5", lw=0.5)
-            axr.set_ylabel(f"({c.output} − meas.)/σ")
-            if joint and f"stick{joint}" in sticks:
-                held = res.values[:, n + sticks.index(f"stick{joint}")] > 0.5
-                for a in (ax, axr):
-                    a.fill_between(
-                        e.time,
-                        0,
-                        1,
-                        where=held,
-                        transform=a.get_xaxis_transform(),
-                        color="C1",
-                        alpha=0.25,
-                        lw=0,
-                        label="stuck (fitted run)",
-                    )
-        axes[-1, 0].set_xlabel("t [s]")
-        fig.suptitle(f"experiment {e.name}: measured and fitted, residuals; stiction phases shaded")
-        fig.tight_layout()
         name = f"fit_{_safe(e.name)}.png"
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
+        columns = {o: res.values[:, j] for j, o in enumerate(outputs)}
+        figure(e, columns, md, out / name, f"experiment {e.name}: measured and fitted, residuals")
         figures.append(name)
     names = result["correlation"]["names"]
     corr = np.array([[np.nan if c is None else c for c in row] for row in result["correlation"]["matrix"]])

@@ -170,9 +170,10 @@ class FitSpec:
         return [e.name for e in self.estimates]
 
 
-def load(spec, base_dir=None) -> FitSpec:
+def load(spec, base_dir=None, replay: bool = False) -> FitSpec:
     """The checked FitSpec of a TOML file path or a dict (paths in a dict are relative to
-    ``base_dir``, default the current directory)."""
+    ``base_dir``, default the current directory); ``replay``: for replaying its experiments
+    (``stickslip simulate --spec``), where ``[estimate]`` may be left out."""
     if isinstance(spec, dict):
         doc, source, base = spec, "fit spec", Path(base_dir or ".")
     else:
@@ -184,7 +185,7 @@ def load(spec, base_dir=None) -> FitSpec:
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
             raise FitSpecError(f"{path}: not valid TOML: {e}") from None
         source, base = str(path), path.resolve().parent
-    return _checked(doc, source, base)
+    return _checked(doc, source, base, replay)
 
 
 def _unknown(keys, allowed, where: str) -> None:
@@ -215,7 +216,7 @@ def _number(value, where: str) -> float:
     return float(value)
 
 
-def _checked(doc: dict, source: str, base: Path) -> FitSpec:
+def _checked(doc: dict, source: str, base: Path, replay: bool = False) -> FitSpec:
     from fmpy import read_model_description
 
     _unknown(doc, TOP_KEYS, source)
@@ -246,7 +247,8 @@ def _checked(doc: dict, source: str, base: Path) -> FitSpec:
     names = [e.name for e in exps]
     if len(set(names)) != len(names):
         raise FitSpecError(f"{source}: experiment names {names} are not unique (give each a `name`)")
-    estimates = _estimates(_table(doc.get("estimate", {}), f"{source}: [estimate]"), source, variables)
+    raw_estimates = _table(doc.get("estimate", {}), f"{source}: [estimate]")
+    estimates = _estimates(raw_estimates, source, variables) if raw_estimates or not replay else []
     for e in exps:
         clash = sorted(set(e.parameters) & {x.name for x in estimates})
         if clash:
