@@ -209,6 +209,7 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
                 return known[name] if name in known else float(inst.by_name[name].start or 0.0)
 
             rotor = segments.rotor(k, value)
+            set_value(slave, inst.by_name["static_start"], False)  # the rotors start where the data put them
             slave.setReal([inst.vr(name) for name in rotor], [float(x) for x in rotor.values()])
     set_drive, set_torques = _input_setter(slave, inst, payload)
     try:
