@@ -339,6 +339,7 @@ class TorqueSpline:
         self.source = source
         self.time = np.asarray(time, dtype=np.float64)
         values = np.asarray(values, dtype=np.float64)  # (samples, torques)
+        self.values = values
         self.spline = CubicSpline(self.time, values, axis=0)
         self.first, self.last = values[0].copy(), values[-1].copy()
         self.references = None

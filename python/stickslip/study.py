@@ -641,7 +641,13 @@ def main(a: argparse.Namespace) -> int:
     if refusal:
         raise SystemExit(f"stickslip study: {refusal}")
     motion, end = None, RUN_TIME if a.end is None else a.end
-    if a.motion is not None:
+    if a.motion is None:
+        from .motion import reference_motion_refusal
+
+        refusal = reference_motion_refusal(a.fmu)
+        if refusal:
+            raise SystemExit(f"stickslip study: {refusal}")
+    else:
         from .motion import MotionError
         from .simulate import motion_of
 

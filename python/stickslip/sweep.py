@@ -221,6 +221,11 @@ def _motion(spec: Spec, md):
     """The SPEC's motion: the reference cycloids, a motion file (TOML, docs/motion.md) checked
     against the FMU's joints, or the older CSV table (:class:`TableMotion`)."""
     if spec.motion == "reference":
+        from .motion import reference_motion_refusal
+
+        refusal = reference_motion_refusal(spec.fmu)
+        if refusal:
+            raise SpecError(f'motion = "reference": {refusal}')
         return reference_inputs
     joints = sum(1 for v in md.modelVariables if v.causality == "input" and v.name.startswith("q_star["))
     try:

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ..fmu import DEFAULT_FMU
-from ..motion import MotionError, is_finite_number, load_motion_for
+from ..motion import MotionError, is_finite_number, load_motion_for, motion_torques
 
 TOP_KEYS = ("fmu", "experiment", "estimate", "options")
 EXPERIMENT_KEYS = ("name", "data", "time", "inputs", "motion", "parameters", "measured", "start", "derivatives")
@@ -580,7 +580,12 @@ def _motion(raw: dict, inputs: dict, table: dict, t, md, where: str, base: Path,
         if not path.is_absolute():
             path = base / path
         try:
-            return (load_motion_for(path, md), None, []), str(path)
+            motion = load_motion_for(path, md)
+            torques = None
+            if motion_torques(motion):  # the motion file's tau_m columns drive the motors
+                names = list(motion_torques(motion))
+                torques = Torques(motion.torques.time, names, motion.torques.values)
+            return (motion, torques, []), str(path)
         except (MotionError, OSError) as e:
             raise FitSpecError(f"{where}: motion = {str(path)!r}: {e}") from None
     if not inputs:
