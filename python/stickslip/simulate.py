@@ -198,6 +198,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     r.add_argument(
         "--fitted", metavar="fitted.toml", help="the values a fit wrote ([parameters], [settings]) to replay with"
     )
+    r.add_argument(
+        "--horizon",
+        type=float,
+        metavar="SECONDS",
+        help="predict over this horizon: restart every SECONDS from the measured state (default: one run)",
+    )
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="parameter value, repeatable")
     p.add_argument(
         "--check-convergence",
@@ -235,8 +241,11 @@ def main(a: argparse.Namespace) -> int:
             return 2
     if a.spec is not None:
         return replay_main(a, parameters)
-    if a.experiment or a.fitted:
-        print("stickslip simulate: --experiment and --fitted replay a fit SPEC: give --spec SPEC.toml", file=sys.stderr)
+    if a.experiment or a.fitted or a.horizon is not None:
+        print(
+            "stickslip simulate: --experiment, --fitted and --horizon replay a fit SPEC: give --spec SPEC.toml",
+            file=sys.stderr,
+        )
         return 2
     inputs, label, end = reference_inputs, "reference motion", RUN_TIME if a.end is None else a.end
     if a.motion is None:
@@ -316,7 +325,9 @@ def replay_main(a: argparse.Namespace, overrides: dict) -> int:
     try:
         spec = load(a.spec, replay=True)
         fitted = fitted_values(a.fitted) if a.fitted else {}
-        report = replay(spec, a.experiment or None, fitted, overrides, out)
+        if a.horizon is not None and not a.horizon > 0:
+            raise ReplayError(f"--horizon {a.horizon:g}: must be > 0 seconds")
+        report = replay(spec, a.experiment or None, fitted, overrides, out, horizon=a.horizon)
     except (FitSpecError, ReplayError) as e:
         print(f"stickslip simulate: {e}", file=sys.stderr)
         return 2

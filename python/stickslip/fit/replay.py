@@ -15,6 +15,12 @@ the samples), ``DIR/<experiment>.png`` (measured against simulated, the residual
 joints' wind-up and torque; stiction shaded), and prints per measured channel the residual's
 rms and its rms in units of the channel's σ, and the cost ½Σ((model − measured)/σ)²: for an
 experiment of the fit and its fitted.toml, the fit's own numbers (fit.json ``residual_rms``).
+
+``--horizon SECONDS``: a prediction over that horizon instead of one simulation of the whole
+run: the run restarts every ``horizon`` seconds from the measured state there (as the fit's
+multiple shooting does, :mod:`stickslip.fit.start`). An arm driven by logged torques drifts
+open loop (the torque log's noise is an input error the simulation integrates); its
+prediction over a horizon shows how well the model follows the arm without that drift.
 """
 
 from __future__ import annotations
@@ -55,7 +61,14 @@ def fitted_values(path) -> dict:
 
 
 def replay(
-    spec, experiments=None, fitted: dict | None = None, overrides: dict | None = None, out=None, plot=True, say=print
+    spec,
+    experiments=None,
+    fitted: dict | None = None,
+    overrides: dict | None = None,
+    out=None,
+    plot=True,
+    say=print,
+    horizon: float | None = None,
 ) -> dict:
     """Runs the experiments named ``experiments`` (all when None) of the loaded FitSpec
     ``spec`` with the values ``fitted`` (FMU name -> value) under each experiment's known
@@ -65,6 +78,7 @@ def replay(
     from ..fmu import content_hash, unpacked
     from .problem import payload_of
     from .runner import run
+    from .start import segment_starts, start_states
 
     fitted, overrides = dict(fitted or {}), dict(overrides or {})
     md = spec.model_description
@@ -89,7 +103,15 @@ def replay(
         e = by_name[name]
         values = {**{k: v for k, v in fitted.items() if k not in e.parameters}, **overrides}
         payload = payload_of(e, md, where, values, outputs)
-        result = run(digest, payload, values, fmu_data=fmu_data)
+        segments = None
+        if horizon is not None:  # a prediction over ``horizon`` s from each measured state
+            segments = start_states(e, segment_starts(e.time, horizon), md, where, values, require_measured=True)
+            if segments is None:
+                raise ReplayError(
+                    f"--horizon: experiment {name!r} does not measure every flexible and motor joint's q, "
+                    "so its state cannot be restarted from the data"
+                )
+        result = run(digest, payload, values, segments, fmu_data=fmu_data)
         entry = {"status": result.status, "message": result.message, "start": payload.start}
         columns = {o: result.values[:, j] for j, o in enumerate(outputs)}
         rms, normalized, cost = {}, {}, 0.0
