@@ -189,7 +189,7 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
             start.history += [(f"multiple {length:g} s", *h) for h in hist]
             say(
                 f"fit: start {start.origin!r}: multiple shooting, {length:g} s segments: cost {res.cost:.6g} "
-                f"({res.nfev} iterations, {time.perf_counter() - t0:.0f} s)"
+                f"({res.nfev} iterations, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - t0:.0f} s)"
             )
         start.continuation_cost = problem.cost(z)
         if not start.continuation_cost <= start.start_cost:
@@ -206,7 +206,7 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     after = f", after the continuation {start.continuation_cost:.6g}" if start.continuation_cost is not None else ""
     say(
         f"fit: start {start.origin!r}: cost {start.cost:.6g} (at its start {start.start_cost:.6g}{after}), "
-        f"{start.status}, {time.perf_counter() - t0:.0f} s"
+        f"{start.status}, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - t0:.0f} s"
     )
     return start
 
