@@ -76,10 +76,15 @@ def fit(
         _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
         problem = Problem(spec, evaluator, flexible)
-        # Multiple shooting restarts each segment from the measured q, q' of every flexible
-        # joint; a motor drive's rotor state (theta_m, omega_m) is not measured that way.
+        # Multiple shooting restarts each segment from the measured q, q' of every flexible and
+        # motor joint (a rotor turned to carry its link's load: stickslip.fit.start).
         segments = problem.segments(spec.options["segment"])
         shooting = spec.options["shooting"]
+        if spec.options["horizon"] is not None and any(s is None for s in segments):
+            raise FitSpecError(
+                f"{spec.source}: [options] horizon needs every flexible and motor joint's q measured "
+                f"(q[{'], q['.join(map(str, flexible))}]) in every experiment, to restart the runs from it"
+            )
         if shooting == "multiple" and any(s is None for s in segments):
             motors = motor_joints(md)
             raise FitSpecError(
@@ -112,7 +117,11 @@ def fit(
         say(
             f"fit: {len(starts)} start(s), "
             + ("multiple shooting in a continuation of segment lengths, then " if multiple else "")
-            + "single shooting"
+            + (
+                f"the prediction over a {spec.options['horizon']:g} s horizon"
+                if spec.options["horizon"]
+                else "single shooting"
+            )
         )
 
         results = run_starts(problem, starts, multiple, spec.options, threads, say)
@@ -123,6 +132,8 @@ def fit(
         result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say)
         result["method"]["start"] = {e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)}
         result["_internal"]["payloads"] = payloads
+        if problem.horizon is not None:
+            result["_internal"]["segments"] = problem.segments(problem.horizon)
     finally:
         if own_cluster is not None:
             client.close()
@@ -201,8 +212,9 @@ def _at_optimum(problem: Problem, z, options: dict) -> Optimum:
     J3z, _ = jacobian(problem, z, r, None, 3.0 * options["diff_step"])
     weights = None if options["loss"] == "linear" else np.sqrt(rho_prime(r, options["loss"], options["f_scale"]))
     J, J3 = Jz @ to_theta, J3z @ to_theta
-    unc = uncertainty(J, r, problem.blocks(), names, options["absolute_sigma"], weights)
-    unc3 = uncertainty(J3, r, problem.blocks(), names, options["absolute_sigma"], weights)
+    clusters = problem.clusters()
+    unc = uncertainty(J, r, problem.blocks(), names, options["absolute_sigma"], weights, clusters)
+    unc3 = uncertainty(J3, r, problem.blocks(), names, options["absolute_sigma"], weights, clusters)
     with np.errstate(invalid="ignore", divide="ignore"):
         change = np.abs(unc3.std_error_classical / unc.std_error_classical - 1.0)
     finite = change[np.isfinite(change)]
@@ -417,7 +429,14 @@ def _summarize(
             for s in results
         ],
         "method": {
-            "shooting": "multiple, then single" if multiple else "single",
+            "shooting": (
+                f"multiple, then over a {problem.horizon:g} s horizon"
+                if problem.horizon is not None
+                else "multiple, then single"
+                if multiple
+                else "single"
+            ),
+            "horizon_s": problem.horizon,
             "segment_s": options["segment"] if multiple else None,
             "loss": options["loss"],
             "absolute_sigma": options["absolute_sigma"],

@@ -120,6 +120,9 @@ class Problem:
         self.evaluator = evaluator
         self.flexible = list(flexible)
         self.error_tolerance = spec.options["error_tolerance"] if error_tolerance is None else error_tolerance
+        # The final cost: the whole run's simulation (None), or the prediction over a horizon
+        # from each measured state ([options] horizon, s: multiple shooting to the end).
+        self.horizon = spec.options.get("horizon")
         self.measured = [np.column_stack([c.values for c in e.channels]) for e in spec.experiments]
         self.sigma = [np.array([c.std for c in e.channels]) for e in spec.experiments]
         self.m = sum(x.size for x in self.measured)
@@ -158,6 +161,21 @@ class Problem:
             offset += n * k
         return out
 
+    def clusters(self, segment: float | None = None) -> list | None:
+        """Row indices of a residual vector per multiple-shooting segment (all channels of its
+        samples): the residuals that share the segment's start error. None in single shooting."""
+        segment = self.horizon if segment is None else segment
+        if segment is None:
+            return None
+        out, offset = [], 0
+        for meas, seg in zip(self.measured, self.segments(segment), strict=True):
+            n, k = meas.shape
+            ends = [*seg.starts[1:], n]
+            for a, b in zip(seg.starts, ends, strict=True):
+                out.append(np.concatenate([offset + j * n + np.arange(a, b) for j in range(k)]))
+            offset += n * k
+        return out
+
     def channel_names(self) -> list:
         many = len(self.spec.experiments) > 1
         return [f"{e.name}:{c.output}" if many else c.output for e in self.spec.experiments for c in e.channels]
@@ -170,6 +188,7 @@ class Problem:
 
     def runs(self, points: list, segment: float | None = None) -> list:
         """For each z in points: the RunResults of every experiment."""
+        segment = self.horizon if segment is None else segment  # the final cost's shooting
         segments = self.segments(segment) if segment is not None else [None] * len(self.spec.experiments)
         jobs = []
         for z in points:
@@ -196,7 +215,7 @@ class Problem:
         return [self.residual(r) for r in self.runs(points, segment)]
 
     def cost(self, z) -> float:
-        """The single-shooting cost ½Σr² at z (inf where a run failed)."""
+        """The final cost ½Σr² at z (single shooting, or over the horizon; inf where a run failed)."""
         runs = self.runs([z])[0]
         if Problem.failed(runs):
             return float("inf")

@@ -63,8 +63,12 @@ def fitted_toml(result: dict, spec, out=None) -> str:
     replays = Path(out) / "replay" if out is not None else Path("replay")
     source = spec.source if Path(spec.source).is_file() else "SPEC.toml"  # a SPEC given as a dict has no file
     lines = ["# The fitted parameters (stickslip fit). To replay a fitted experiment with them:"]
+    horizon = result["method"].get("horizon_s")
+    ahead = f" --horizon {horizon!r}" if horizon is not None else ""
     for e in spec.experiments:
-        lines.append(f"#   stickslip simulate --spec {source} --experiment '{e.name}' --fitted {here} --out {replays}")
+        lines.append(
+            f"#   stickslip simulate --spec {source} --experiment '{e.name}' --fitted {here}{ahead} --out {replays}"
+        )
     lines += [
         "# (held-out runs: a SPEC of their experiments, without [estimate], in place of the fit's).",
         "# [parameters]: the estimates (full precision) with their standard errors;",
@@ -225,10 +229,12 @@ def _plots(result: dict, spec, out: Path) -> list:
     payloads = result["_internal"].get("payloads")
     for k, e in enumerate(spec.experiments):
         start = payloads[k].start if payloads else None
+        horizon = result["_internal"].get("segments")
         res = run(
             digest,
             Payload(e.name, e.time, e.motion, e.torques, outputs, dict(e.parameters), start),
             values,
+            horizon[k] if horizon else None,
             fmu_data=data,
         )
         name = f"fit_{_safe(e.name)}.png"

@@ -167,6 +167,11 @@ def segment_lengths(problem: Problem, first: float) -> list:
     """The continuation's segment lengths: ``first``, 3×, 9×, … while shorter than half the
     longest experiment (at least ``first``)."""
     longest = max(float(e.time[-1] - e.time[0]) for e in problem.spec.experiments)
+    if problem.horizon is not None:  # the final cost is over the horizon: shorter ones lead to it
+        out = [min(first, problem.horizon)]
+        while 3.0 * out[-1] < problem.horizon:
+            out.append(3.0 * out[-1])
+        return [x for x in out if x < problem.horizon] or [first]
     out = [first]
     while 3.0 * out[-1] < 0.5 * longest:
         out.append(3.0 * out[-1])

@@ -25,6 +25,9 @@
     f_scale = 1.0          # the robust loss's scale, in normalized residuals
     absolute_sigma = false # false: the sigmas are relative, their scale is estimated from the residuals
     shooting = "auto"      # "single", "multiple" (segments restarted from the measured state) or "auto"
+    horizon = 0.5          # optional, s: the final cost is the prediction over this horizon from each
+                           # measured state (else the whole run's simulation): for arms whose open-loop
+                           # runs drift, such as those driven by logged torques
     segment = 0.1          # s, multiple shooting's segment length
     drop_nan = false       # true: rows with NaN samples are dropped (named in the report), else refused
     error_tolerance = 1e-6 # optional: the FMU's error_tolerance during the fit (else its start value)
@@ -69,6 +72,7 @@ OPTION_DEFAULTS = {
     "max_evaluations": 200,
     "diff_step": 1e-3,
     "derivatives": "auto",
+    "horizon": None,
 }
 MAX_STARTS = 1000
 
@@ -318,6 +322,15 @@ def _options(raw, where: str) -> dict:
         if not isinstance(options[key], bool):
             raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
     options["derivatives"] = _filter(options["derivatives"], f"{where}: derivatives")
+    if options["horizon"] is not None:
+        options["horizon"] = _number(options["horizon"], f"{where}: horizon")
+        if not options["horizon"] > 0:
+            raise FitSpecError(f"{where}: horizon = {options['horizon']:g}: must be > 0 seconds")
+        if options["shooting"] == "single":
+            raise FitSpecError(
+                f'{where}: horizon = {options["horizon"]:g} and shooting = "single": a horizon restarts the runs '
+                "from the measured state (multiple shooting); leave out one of the two"
+            )
     if options["error_tolerance"] is not None:
         options["error_tolerance"] = _number(options["error_tolerance"], f"{where}: error_tolerance")
         if options["error_tolerance"] <= 0:

@@ -52,9 +52,13 @@ class Uncertainty:
     lags: list = field(default_factory=list)  # the sandwich's lag window per series
 
 
-def uncertainty(J, r, blocks: list, names: list, absolute_sigma: bool, weights=None) -> Uncertainty:
+def uncertainty(J, r, blocks: list, names: list, absolute_sigma: bool, weights=None, clusters=None) -> Uncertainty:
     """The covariance of θ from J (m × p, ∂r/∂θ in θ's units) and r at the optimum; ``blocks``:
-    the (start, stop) rows of each channel's time series; ``weights``: √ρ′ of a robust loss."""
+    the (start, stop) rows of each channel's time series; ``weights``: √ρ′ of a robust loss;
+    ``clusters``: row indices of residuals that share an error (the samples of one
+    multiple-shooting segment, all channels: its start state comes from filtered
+    measurements), for a cluster-robust sandwich Σ_c (Jᵀr)_c (Jᵀr)_cᵀ · C/(C−1) (Liang and
+    Zeger 1986), whose standard error joins the others' maximum."""
     m, p = J.shape
     w = np.ones(m) if weights is None else np.asarray(weights)
     Jw, rw = J * w[:, None], r * w
@@ -81,6 +85,13 @@ def uncertainty(J, r, blocks: list, names: list, absolute_sigma: bool, weights=N
     sandwich = inverse @ long_run @ inverse
     se_classical = np.sqrt(np.abs(np.diag(classical)))
     se_sandwich = np.sqrt(np.abs(np.diag(sandwich)))
+    if clusters is not None and len(clusters) > 1:
+        scores = np.array([Jw[rows].T @ rw[rows] for rows in clusters])
+        grouped = inverse @ (scores.T @ scores * len(clusters) / (len(clusters) - 1)) @ inverse
+        se_grouped = np.sqrt(np.abs(np.diag(grouped)))
+        if np.sum(se_grouped / np.maximum(se_sandwich, 1e-300)) > len(se_sandwich):
+            sandwich = grouped  # its correlations, where the segments' shared errors dominate
+        se_sandwich = np.maximum(se_sandwich, se_grouped)
     se = np.maximum(se_classical, se_sandwich)
     # The reported covariance: the sandwich's correlations at the reported standard errors.
     with np.errstate(invalid="ignore", divide="ignore"):
