@@ -95,10 +95,17 @@ KINDS = LINEAR + ROTOR  # every parameter some equation of the stage is linear i
 # A joint slips where its filtered |q̇| exceeds SLIP_SIGMAS standard deviations of the noise the
 # filter leaves in q̇ (the encoder's noise and count through the filter's first derivative).
 SLIP_SIGMAS = 6.5
-# A direction of the scaled parameters whose singular value is below COLLINEAR of the largest
-# is one the data do not see; a parameter takes part in it where its component exceeds INVOLVED.
-COLLINEAR = 1e-6
+# A direction of the scaled parameters (each column of unit norm) whose singular value is below
+# COLLINEAR of the largest is one the data do not see: two columns alike to 0.1 %, below what the
+# stage's own approximations (filtered derivatives, a stiff gear) leave of each column (a motor's
+# b_m N θ̇_m against its link's b_v q̇/N: alike but for the gear's deflection rate, measured
+# 4e-5 on the motor arm, where a 1e-6 rule returned b_v 42 times the truth). A parameter takes
+# part in such a direction where its component exceeds INVOLVED.
+COLLINEAR = 1e-3
 INVOLVED = 0.05
+# An estimated link mass is taken at its initial value; where 10 % more of it would move an
+# estimate by more than MASS_SHIFT of itself, a note says so.
+MASS_SHIFT = 0.01
 # The parameters inverse dynamics and the lever loads depend on: masses and contact geometry.
 RIGID_BODY = ("m", "slider_a", "slider_b", "slider_c", "d_A", "d_B", "d_C", "l_A", "l_B")
 EXPORT = "stickslip_inverse_dynamics"  # the FMU library's function beyond FMI 2.0
@@ -346,7 +353,10 @@ def _experiment(ex, unzipdir, flexible, initial, start_values, targets, masses, 
             f"equation-error stage: experiment {ex.name!r}: joints {rotor_encoder} from their motor encoders "
             "(q = theta_m/N: the gear's deflection left out)"
         )
-    for name in getattr(ex, "filtered_inputs", []) or []:
+    filtered_inputs = list(getattr(ex, "filtered_inputs", []) or [])
+    # Joints whose q, q̇, q̈ are exact commands, never through the filter.
+    exact = [j for j in range(1, n + 1) if j not in flexible and f"q_star[{j}]" not in filtered_inputs]
+    for name in filtered_inputs:
         j = int(name[name.index("[") + 1 : -1])
         if j not in flexible:  # a rigid joint's measured position, through the filter already
             inner = getattr(ex.motion, "inner", None)
@@ -419,7 +429,13 @@ def _experiment(ex, unzipdir, flexible, initial, start_values, targets, masses, 
             else:
                 found.append(("gear spring", {"k": deflection, "h": rate}, force_f[0], everywhere, 0.0))
         if force is not None and friction:
-            found.append((f"{force_label} = tau + friction", friction, force_f[0] - tau, slip, -1.0))
+            if i in exact:  # its motion was never filtered: τ and f through the force's filter too
+                parallel = {x: derivatives(t, c, flt)[0] for x, c in friction.items()}
+                found.append(
+                    (f"{force_label} = tau + friction", parallel, force_f[0] - derivatives(t, tau, flt)[0], slip, -1.0)
+                )
+            else:
+                found.append((f"{force_label} = tau + friction", friction, force_f[0] - tau, slip, -1.0))
             if held is not None and phase is None:
                 phase = (_measured_force(force_f[0]), *held)
         elif force is not None:
@@ -442,8 +458,11 @@ def _experiment(ex, unzipdir, flexible, initial, start_values, targets, masses, 
                     ratio * (x + f / stiffness) for x, f in zip((q[:, s], v, qdd[:, s]), force_f, strict=True)
                 )
                 rotor_noise = ratio * speed_noise[i]
-            else:  # a stiff gear: θ_m = N q
-                rotor = (ratio * q[:, s], ratio * v, ratio * qdd[:, s])
+            else:  # θ_m = N (q + F/k), F = τ + f at the known (or initial) friction, through the filter
+                stiffness = value["k"] if value["k"] > 0 else math.inf
+                load_force = tau + sum((c * value[x] for x, c in friction.items()), np.zeros(rows_n))
+                wind = derivatives(t, load_force, flt) if math.isfinite(stiffness) else (0.0, 0.0, 0.0)
+                rotor = tuple(ratio * (x + f / stiffness) for x, f in zip((q[:, s], v, qdd[:, s]), wind, strict=True))
                 rotor_noise = ratio * speed_noise[i]
             spin = _certain(rotor[1], rotor[2], SLIP_SIGMAS * rotor_noise, reach)
             rotor_features = {"J_m": rotor[2], "b_m": rotor[1], "tau_c": np.sign(rotor[1])}
@@ -600,22 +619,20 @@ def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: lis
     for direction in null:
         said.append(f"{head} {_combination(direction, scale, full, sol)}")
     if masses and len(blocks):
-        M = np.vstack([weight[label] * b[2] for label, b in blocks.items()])
-        if M.shape[1] and np.any(M != 0.0):
-            _, _, both, both_scale = truncated_lstsq(np.hstack([A, M]), y, np.zeros(A.shape[1] + M.shape[1]))
-            for direction in both:
-                if np.any(np.abs(direction[len(full) :]) > INVOLVED) and np.any(
-                    np.abs(direction[: len(full)]) > INVOLVED
-                ):
-                    text = _combination(direction, both_scale, full + masses, None)
-                    said.append(
-                        f"{head} {text}; this stage takes the masses at their initial values, so the parameters "
-                        "above carry their error"
-                    )
+        said.extend(
+            _mass_notes(
+                head, A, y, np.vstack([weight[label] * b[2] for label, b in blocks.items()]), full, sol, masses, initial
+            )
+        )
     residual = {label: _rms(yb - Ab @ sol) for label, (Ab, yb, _) in blocks.items()}
     values = {}
     shown = []
+    unseen = {full[j] for direction in null for j in range(len(full)) if abs(direction[j]) > INVOLVED}
     for name, x, e in zip(full, sol, se, strict=True):
+        if name in unseen:
+            values[name] = float(x)
+            shown.append(f"{name} = {x:.6g} (not apart from another, below)")
+            continue
         if not (np.isfinite(x) and np.isfinite(e)) or e > abs(x):
             said.append(
                 f"{head} {name} = {x:.4g} with a standard error of {e:.2g}: not determined by these data, left out"
@@ -633,6 +650,39 @@ def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: lis
         + f", residual rms {rms}",
     )
     return values, said
+
+
+def _mass_notes(head: str, A, y, M, full: list, sol, masses: list, initial: dict) -> list:
+    """What the estimated link masses ``masses`` (taken at their initial values by this
+    stage; their columns M of τ, per kg) do to joint's estimates: a direction the data do not
+    see that joins a parameter and a mass (J_m N² and the inertia the mass gives the joint,
+    where the motion leaves that inertia constant), and each estimate that a 10 % error of a
+    mass moves by more than MASS_SHIFT of itself."""
+    said = []
+    columns = [k for k in range(M.shape[1]) if np.any(M[:, k] != 0.0)]
+    if not columns:
+        return said
+    M = M[:, columns]
+    names = [masses[k] for k in columns]
+    _, _, both, scale = truncated_lstsq(np.hstack([A, M]), y, np.zeros(A.shape[1] + M.shape[1]))
+    for direction in both:
+        if np.any(np.abs(direction[len(full) :]) > INVOLVED) and np.any(np.abs(direction[: len(full)]) > INVOLVED):
+            text = _combination(direction, scale, full + names, None)
+            said.append(f"{head} {text}; this stage takes the masses at their initial values")
+    for k, mass in enumerate(names):
+        step = 0.1 * abs(float(initial.get(mass, 0.0)))
+        shift = truncated_lstsq(A, M[:, k] * step, np.zeros(A.shape[1]))[0]
+        moved = [
+            f"{name} by {100 * d / x:+.2g} %"
+            for name, d, x in zip(full, shift, sol, strict=True)
+            if x != 0 and abs(d) > MASS_SHIFT * abs(x)
+        ]
+        if moved:
+            said.append(
+                f"{head} this stage takes {mass} at its initial value {initial.get(mass, 0.0):g}; 10 % more of it "
+                f"would move {', '.join(moved)}"
+            )
+    return said
 
 
 def _rms(y) -> float:
