@@ -186,8 +186,18 @@ def derivatives(t, y, flt: Filter) -> tuple:
         if flt.cutoff >= nyquist:
             raise ValueError(f"cutoff {flt.cutoff:g} Hz is not below the samples' Nyquist frequency {nyquist:g} Hz")
         sos = butter(flt.order, flt.cutoff / nyquist, output="sos")
-        pad = min(n - 1, 3 * (2 * len(sos) + 1))
-        smooth = sosfiltfilt(sos, y, axis=0, padlen=pad)
+        # Each end continued by the cubic fitted to its samples within one cut-off period (at
+        # least 5), for four cut-off periods: the filter's start-up transients die out there,
+        # and the value, slope and curvature at the ends are the data's. (sosfiltfilt's own odd
+        # extension of 3 (2 sections + 1) samples left a 1 Hz sine's q̈ 7.6 times its amplitude
+        # wrong at the ends with a 20 Hz cut-off at 1 kHz; the cubic 0.5 %, at 3-7 times the
+        # interior's noise at the end sample.)
+        fit = min(n, max(5, round(1.0 / (flt.cutoff * dt))))
+        pad = max(1, round(4.0 / (flt.cutoff * dt)))
+        steps = dt * np.arange(1, pad + 1)
+        before = _continued(t[:fit] - t[0], y[:fit], -steps[::-1])
+        after = _continued(t[-fit:] - t[-1], y[-fit:], steps)
+        smooth = sosfiltfilt(sos, np.concatenate([before, y, after]), axis=0, padtype=None)[pad : pad + n]
         spline = CubicSpline(t, smooth, axis=0)
         return smooth, spline(t, 1), spline(t, 2)
     return _spline(t, y)
@@ -214,6 +224,15 @@ def noise_gains(flt: Filter, dt: float, n: int) -> tuple:
             return tuple(float(np.sqrt(np.sum(savgol_coeffs(k, flt.order, deriv=d, delta=dt) ** 2))) for d in (0, 1, 2))
     response = derivatives(t, impulse, flt)
     return tuple(float(np.sqrt(np.sum(r**2))) for r in response)
+
+
+def _continued(t, y, at):
+    """The cubic least-squares fit of samples ``y`` (n, or n × channels) at ``t`` (a lower
+    degree for fewer than 4), evaluated at ``at``."""
+    degree = min(3, len(t) - 1)
+    coefficients = np.polyfit(t, y, degree)
+    powers = np.vander(at, degree + 1)
+    return powers @ coefficients
 
 
 def rough(values) -> bool:
