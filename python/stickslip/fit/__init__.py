@@ -102,12 +102,26 @@ def fit(
         }
         from . import idim
 
+        errors = {}
         try:
-            idim_theta, notes = idim.estimate(spec, unpacked(fmu_data, digest), flexible, initial, tunable)
+            idim_theta, notes = idim.estimate(spec, unpacked(fmu_data, digest), flexible, initial, tunable, errors)
         except (RuntimeError, OSError, KeyError, ValueError) as e:
             idim_theta, notes = {}, [f"equation-error stage failed, its start left out: {e}"]
         for note in notes:
             say(f"fit: {note}")
+        if spec.options["stage"] == "equation-error":
+            result = _equation_error_result(spec, problem, idim_theta, errors, notes, evaluator, t0, say)
+            result["method"]["start"] = {
+                e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)
+            }
+            result["_internal"]["payloads"] = payloads
+            if problem.horizon is not None:
+                result["_internal"]["segments"] = problem.segments(problem.horizon)
+            if out is not None:
+                from .report import write
+
+                write(result, spec, Path(out))
+            return result
         if idim_theta:
             z = problem.transform.z([idim_theta.get(n, initial[n]) for n in initial])
             starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), "equation-error"))
@@ -143,6 +157,122 @@ def fit(
 
         write(result, spec, Path(out))
     return result
+
+
+def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list, evaluator, t0: float, say) -> dict:
+    """The fit's result where ``[options] stage = "equation-error"``: the equation-error
+    stage's estimates (:mod:`stickslip.fit.idim`: the torques' or slip equations' linear least
+    squares) and standard errors are the answer; the FMU runs once at them (over the horizon
+    where one is set) for the residuals, the goodness of fit and the plots, which show how the
+    model with these values follows the measured motion, but do not decide the estimate."""
+    from .uncertainty import goodness_of_fit
+
+    names = [e.name for e in spec.estimates]
+    missing = [n for n in names if n not in theta]
+    if len(missing) == len(names):
+        raise FitError(
+            "stage = 'equation-error': the equation-error stage estimated none of the parameters: "
+            + "; ".join(n for n in notes)
+        )
+    values = np.array([theta.get(e.name, e.initial) for e in spec.estimates])
+    z = problem.transform.z(values)
+    runs = problem.runs([z])[0]
+    r = problem.residual(runs)
+    cost = 0.5 * float(r @ r)
+    channels = [(c.sigma, c.resolution) for e in spec.experiments for c in e.channels]
+    gof = goodness_of_fit(
+        r, problem.blocks(), [(n, *c) for n, c in zip(problem.channel_names(), channels, strict=True)], 0
+    )
+    warnings = [
+        f"{n} was not estimated by the equation-error stage (see its notes): reported at its initial value"
+        for n in missing
+    ]
+    params = {}
+    for e, v in zip(spec.estimates, values, strict=True):
+        se = errors.get(e.name, math.inf) if e.name not in missing else math.inf
+        at_bound = bool(min(v - e.low, e.high - v) <= 1e-6 * (e.high - e.low))
+        params[e.name] = {
+            "value": float(v),
+            "std_error": float(se),
+            "std_error_classical": float(se),
+            "std_error_sandwich": math.nan,
+            "initial": e.initial,
+            "bounds": [e.low, e.high],
+            "at_bound": at_bound,
+            "scale": e.scale,
+        }
+        if at_bound:
+            warnings.append(f"{e.name} = {v:.6g} was clipped into its bounds [{e.low:g}, {e.high:g}]")
+    residual_rms = {}
+    for ex, res in zip(spec.experiments, runs, strict=True):
+        for k, c in enumerate(ex.channels):
+            key = c.output if len(spec.experiments) == 1 else f"{ex.name}:{c.output}"
+            residual_rms[key] = float(np.sqrt(np.mean((res.values[:, k] - c.values) ** 2)))
+    trusted = not warnings
+    level = math.sqrt(gof["reduced_chi_square"]) if gof["reduced_chi_square"] > 0 else math.nan
+    shooting = f"over a {problem.horizon:g} s horizon" if problem.horizon is not None else "as one run"
+    verdict = (
+        "equation-error estimate (the measured torques' or slip equations' linear least squares)"
+        + ("" if trusted else ", NOT COMPLETE: see the warnings")
+        + f"; replayed {shooting}, the residuals are {level:.3g}× the stated noise"
+    )
+    say(f"fit: equation-error stage is the answer; its replay's cost {cost:.6g} ({evaluator.runs} FMU runs)")
+    correlation = np.eye(len(names))
+    for a, x in enumerate(names):
+        for b, y in enumerate(names):
+            if (x, y) in errors and x not in missing and y not in missing:
+                correlation[a, b] = errors[(x, y)]
+    return {
+        "trusted": trusted,
+        "verdict": verdict,
+        "parameters": params,
+        "correlation": {"names": names, "matrix": correlation.tolist()},
+        "cost": cost,
+        "goodness_of_fit": {
+            **{k: v for k, v in gof.items() if k != "channels"},
+            "channels": {c.name: {k: v for k, v in c.__dict__.items() if k != "name"} for c in gof["channels"]},
+        },
+        "rms_normalized_residual": float(np.sqrt(np.mean(r**2))),
+        "residual_rms": residual_rms,
+        "n_evaluations": evaluator.runs,
+        "wall_s": time.perf_counter() - t0,
+        "converged": True,
+        "warnings": warnings,
+        "starts": [],
+        "method": {
+            "stage": "equation-error",
+            "shooting": f"equation-error; replayed {shooting}",
+            "horizon_s": problem.horizon,
+            "segment_s": None,
+            "loss": "linear",
+            "absolute_sigma": True,
+            "sigma_scale": 1.0,
+            "error_tolerance": problem.error_tolerance,
+            "error_tolerance_checks": [],
+            "segment_lengths_s": None,
+            "diff_step": None,
+            "sandwich_lag_windows": {},
+            "noise": {
+                name: {"sigma": c.sigma, "resolution": c.resolution, "resolution_detected": c.resolution_detected}
+                for name, c in zip(
+                    problem.channel_names(), [c for e in spec.experiments for c in e.channels], strict=True
+                )
+            },
+            "std_error_change_with_3x_step": None,
+            "condition_number": None,
+            "samples": len(r),
+            "equation_error_stage": notes,
+            "jacobian_notes": [],
+        },
+        "dropped_rows": {e.name: e.dropped_rows for e in spec.experiments if e.dropped_rows},
+        "failed_runs": {"count": len(problem.failures), "by_status": {}, "first": problem.failures[:5]},
+        "_internal": {
+            "z": z,
+            "theta": values,
+            "runs": runs,
+            "covariance": np.diag([p["std_error"] ** 2 for p in params.values()]),
+        },
+    }
 
 
 def _start_text(experiment, payload) -> str:

@@ -247,11 +247,15 @@ def inverse_dynamics(unzipdir, states, settings=()) -> tuple:
     return tau, load
 
 
-def estimate(spec, unzipdir: str, flexible: list, initial: dict, start_values: dict) -> tuple:
+def estimate(spec, unzipdir: str, flexible: list, initial: dict, start_values: dict, errors=None) -> tuple:
     """(θ dict of the estimated parameters this stage could estimate, notes). ``flexible``:
     the spring-driven joints (flexible and motor drives: those with a ``q_start`` parameter);
     ``initial``: the estimates' initial values; ``start_values``: the FMU's parameters' start
-    values (the gear ratios among them)."""
+    values (the gear ratios among them). ``errors``: a dict that receives each estimate's
+    standard error (the least squares' own, its residuals taken as independent; for μ_s of the
+    breakaways, 1.4826 × the median absolute deviation of their midpoints over √n, or half
+    the one bracket's width), and under (name, other name) the correlation of two estimates of
+    one joint."""
     targets = {}
     for e in spec.estimates:
         j = joint_of(e.name)
@@ -292,7 +296,7 @@ def estimate(spec, unzipdir: str, flexible: list, initial: dict, start_values: d
     for i, names in targets.items():
         # μ_s of a v_s = 0 joint is read from the breakaways, not from an equation's rows.
         quiet = ("mu_s",) if phases[i] else ()
-        values, said = solve_joint(i, names, equations[i], initial, masses, lacking[i], quiet)
+        values, said = solve_joint(i, names, equations[i], initial, masses, lacking[i], quiet, errors)
         notes.extend(said)
         theta.update(values)
         name = f"mu_s[{i}]"
@@ -302,10 +306,13 @@ def estimate(spec, unzipdir: str, flexible: list, initial: dict, start_values: d
                 (np.abs(force(theta) - held) / load, load, speed, v_noise)
                 for force, held, load, speed, v_noise in phases[i]
             ]
-            value, note = breakaway_mu_s(ratios)
+            spread = []
+            value, note = breakaway_mu_s(ratios, spread)
             notes.append(f"equation-error stage: joint {i}: {note}")
             if value is not None:
                 theta[name] = value
+                if errors is not None and spread:
+                    errors[name] = spread[0]
         if name in theta:  # of the slip equation (v_s > 0) or of the breakaways
             mu_k = theta.get(f"mu_k[{i}]", mu_k_known[i])
             value, said = admissible_mu_s(theta[name], mu_k, estimated[name].low, estimated[name].high)
@@ -574,7 +581,9 @@ def white_noise(values) -> float:
     return float(np.sqrt(np.mean(np.diff(y, 4) ** 2) / 70.0)) if len(y) > 8 else 0.0
 
 
-def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: list, lacking=(), quiet=()) -> tuple:
+def solve_joint(
+    i: int, names: list, equations: dict, initial: dict, masses: list, lacking=(), quiet=(), errors=None
+) -> tuple:
     """({name: value} of joint i's parameters ``names`` (kinds, "mu_k", ...) the rows of
     ``equations`` ({equation: [(A, y, mass columns) per experiment]}) determine, notes).
 
@@ -622,7 +631,8 @@ def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: lis
     for k in range(3):
         A = np.vstack([weight[label] * b[0] for label, b in blocks.items()])
         y = np.concatenate([weight[label] * b[1] for label, b in blocks.items()])
-        sol, se, null, scale = truncated_lstsq(A, y, theta0)
+        covariance = []
+        sol, se, null, scale = truncated_lstsq(A, y, theta0, _series(blocks, equations), covariance)
         if k < 2:
             weight = {label: 1.0 / _rms(yb - Ab @ sol) for label, (Ab, yb, _) in blocks.items()}
     for direction in null:
@@ -637,6 +647,13 @@ def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: lis
     values = {}
     shown = []
     unseen = {full[j] for direction in null for j in range(len(full)) if abs(direction[j]) > INVOLVED}
+    if errors is not None and covariance:
+        cov = covariance[0]
+        sd = np.sqrt(np.abs(np.diag(cov)))
+        for a in range(len(full)):
+            for b in range(len(full)):
+                if a != b and sd[a] > 0 and sd[b] > 0:
+                    errors[(full[a], full[b])] = float(cov[a, b] / (sd[a] * sd[b]))
     for name, x, e in zip(full, sol, se, strict=True):
         if name in unseen:
             values[name] = float(x)
@@ -648,6 +665,8 @@ def solve_joint(i: int, names: list, equations: dict, initial: dict, masses: lis
             )
             continue
         values[name] = float(x)
+        if errors is not None:
+            errors[name] = float(e)
         shown.append(f"{name} = {x:.6g} (standard error {e:.2g})")
     equations_said = ", ".join(f"{label} over {counts[label]} samples" for label in blocks)
     rms = ", ".join(f"{residual[label]:.3g}" + (f" ({label})" if len(blocks) > 1 else "") for label in blocks)
@@ -694,16 +713,34 @@ def _mass_notes(head: str, A, y, M, full: list, sol, masses: list, initial: dict
     return said
 
 
+def _series(blocks: dict, equations: dict) -> list:
+    """(start, stop) rows of each experiment's rows of each equation, in the order the
+    equations' blocks are stacked (the rows of one experiment follow in time)."""
+    out, offset = [], 0
+    for label in blocks:
+        for part in equations[label]:
+            n = len(part[1])
+            if n:
+                out.append((offset, offset + n))
+                offset += n
+    return out
+
+
 def _rms(y) -> float:
     value = float(np.sqrt(np.mean(np.square(y)))) if len(y) else 0.0
     return value if value > 0 else 1.0
 
 
-def truncated_lstsq(A, y, theta0) -> tuple:
+def truncated_lstsq(A, y, theta0, blocks=None, covariance: list | None = None) -> tuple:
     """(θ, standard errors, unseen directions, column norms) of y ≈ A θ: the columns scaled to
     unit norm, the singular directions of relative size below COLLINEAR left at ``theta0``
     (the solution of least change from it); the unseen directions as unit vectors in the
-    scaled coordinates (θ_j times column j's norm). Standard errors from the residuals' rms."""
+    scaled coordinates (θ_j times column j's norm). Standard errors from the residuals' rms;
+    with ``blocks`` (the (start, stop) rows of each time series among the rows), the larger of
+    that and a Newey-West sandwich (:func:`stickslip.fit.uncertainty.long_run_covariance`):
+    rows of filtered signals are correlated over the filter's reach, and independent-residual
+    errors then come out several times too small. ``covariance``: a list that receives θ's
+    covariance at those standard errors (with the sandwich's correlations)."""
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0
     As = A / scale
@@ -715,8 +752,21 @@ def truncated_lstsq(A, y, theta0) -> tuple:
     residual = y - As @ z
     dof = max(len(y) - int(keep.sum()), 1)
     s2 = float(residual @ residual) / dof
-    cov = (Vt[keep].T * (s2 / S[keep] ** 2)) @ Vt[keep]
-    return z / scale, np.sqrt(np.diag(cov)) / scale, list(Vt[~keep]), scale
+    inverse = (Vt[keep].T / S[keep] ** 2) @ Vt[keep]
+    cov = s2 * inverse
+    if blocks is not None:
+        from .uncertainty import long_run_covariance
+
+        meat, _ = long_run_covariance(As, residual, blocks)
+        sandwich = inverse @ meat @ inverse
+        se = np.maximum(np.sqrt(np.abs(np.diag(cov))), np.sqrt(np.abs(np.diag(sandwich))))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = sandwich / np.outer(np.sqrt(np.diag(sandwich)), np.sqrt(np.diag(sandwich)))
+        corr = np.where(np.isfinite(corr), corr, 0.0)
+        cov = corr * np.outer(se, se)
+    if covariance is not None:
+        covariance.append(cov / np.outer(scale, scale))
+    return z / scale, np.sqrt(np.abs(np.diag(cov))) / scale, list(Vt[~keep]), scale
 
 
 def _combination(direction, scale, names, theta) -> str:
@@ -788,7 +838,7 @@ def breakaways(ratio, load, speed, v_noise) -> tuple:
     return found, skipped
 
 
-def breakaway_mu_s(experiments: list) -> tuple:
+def breakaway_mu_s(experiments: list, spread: list | None = None) -> tuple:
     """(μ_s or None, a note) of the :func:`breakaways` of every experiment (each the arguments
     of one call): the midpoint of each breakaway's bounds, those whose bounds lie within
     BRACKET of it, their median weighted by the inverse of each one's width (a narrow bracket
@@ -809,6 +859,11 @@ def breakaway_mu_s(experiments: list) -> tuple:
     middle, weight = middle[narrow], 1.0 / np.maximum(width[narrow], 1e-3 * middle[narrow])
     order = np.argsort(middle)
     value = float(middle[order][np.searchsorted(np.cumsum(weight[order]), 0.5 * weight.sum())])
+    if spread is not None:  # its standard error: the midpoints' robust spread, or the one bracket's
+        one = 0.5 * float(width[narrow][0])
+        spread.append(
+            float(1.4826 * np.median(np.abs(middle - value)) / np.sqrt(len(middle))) if len(middle) > 1 else one
+        )
     said = (
         f"mu_s = {value:.4g} from {len(middle)} breakaways (the median of their brackets' midpoints, each "
         f"weighted by its inverse width; midpoints {middle.min():.4g} to {middle.max():.4g}; "

@@ -204,7 +204,7 @@ def figure(experiment, columns: dict, md, path, title: str) -> None:
         row += 1
         wind = columns.get(f"eps_joint[{i}]")
         if wind is not None:
-            ax.plot(e.time, -wind, lw=1.0, color="C0", label=f"simulated θ_m/N − q, joint {i}")
+            ax.plot(e.time, wind, lw=1.0, color="C0", label=f"simulated θ_m/N − q, joint {i}")
         if f"theta_m[{i}]" in channels and f"q[{i}]" in channels:
             ratio = float(e.parameters.get(f"gear_ratio[{i}]", _start(md, f"gear_ratio[{i}]")))
             measured = channels[f"theta_m[{i}]"].values / ratio - channels[f"q[{i}]"].values

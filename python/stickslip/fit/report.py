@@ -91,11 +91,12 @@ def _toml_value(v) -> str:
 
 def report_md(result: dict, spec, figures: list) -> str:
     m = result["method"]
+    shooting_word = "" if m.get("stage") == "equation-error" else " shooting"
     lines = [
         "# Fit report",
         "",
         f"FMU `{spec.fmu.name}`, {len(spec.experiments)} experiment(s), {m['samples']} samples; "
-        f"{m['shooting']} shooting, loss `{m['loss']}`; {result['n_evaluations']} FMU runs in "
+        f"{m['shooting']}{shooting_word}, loss `{m['loss']}`; {result['n_evaluations']} FMU runs in "
         f"{result['wall_s']:.1f} s; {'converged' if result['converged'] else 'NOT converged'}.",
         "",
         f"**Verdict: {result['verdict']}.**",
@@ -177,10 +178,17 @@ def report_md(result: dict, spec, figures: list) -> str:
     lines += ["", "## Method", ""]
     lines += [f"- Experiment {name!r} starts {how}." for name, how in m.get("start", {}).items()]
     lines += [f"- {note}" for note in m["equation_error_stage"]]
-    lines.append(
-        f"- Jacobian: forward differences of step {m['diff_step']:g} (of each normalized range); with a 3x step "
-        f"the standard errors change by at most {100 * m['std_error_change_with_3x_step']:.1f} %."
-    )
+    if m.get("stage") == "equation-error":
+        lines.append(
+            '- The answer is the equation-error stage\'s (`[options] stage = "equation-error"`): its standard '
+            "errors are its least squares' own (residuals as independent); the FMU ran once at it for the residuals "
+            "and figures. The correlations between parameters are not computed (shown as 0)."
+        )
+    else:
+        lines.append(
+            f"- Jacobian: forward differences of step {m['diff_step']:g} (of each normalized range); with a 3x step "
+            f"the standard errors change by at most {100 * m['std_error_change_with_3x_step']:.1f} %."
+        )
     for check in m["error_tolerance_checks"]:
         lines.append(
             f"- error_tolerance {check['error_tolerance']:g}: a Gauss-Newton step at a tenfold tighter tolerance moves "

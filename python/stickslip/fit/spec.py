@@ -25,6 +25,8 @@
     f_scale = 1.0          # the robust loss's scale, in normalized residuals
     absolute_sigma = false # false: the sigmas are relative, their scale is estimated from the residuals
     shooting = "auto"      # "single", "multiple" (segments restarted from the measured state) or "auto"
+    stage = "output-error" # or "equation-error": the equation-error stage (IDIM) is the answer, with its
+                           # standard errors (for torque-logged arms, whose open-loop runs drift)
     horizon = 0.5          # optional, s: the final cost is the prediction over this horizon from each
                            # measured state (else the whole run's simulation): for arms whose open-loop
                            # runs drift, such as those driven by logged torques
@@ -59,6 +61,7 @@ STARTS = ("data", "rest")  # an experiment's start state: from its first samples
 ESTIMATE_KEYS = ("initial", "bounds", "scale")
 LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
 SHOOTING = ("auto", "single", "multiple")
+STAGES = ("output-error", "equation-error")
 OPTION_DEFAULTS = {
     "starts": 1,
     "seed": 1,
@@ -73,6 +76,7 @@ OPTION_DEFAULTS = {
     "diff_step": 1e-3,
     "derivatives": "auto",
     "horizon": None,
+    "stage": "output-error",
 }
 MAX_STARTS = 1000
 
@@ -322,6 +326,12 @@ def _options(raw, where: str) -> dict:
         if not isinstance(options[key], bool):
             raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
     options["derivatives"] = _filter(options["derivatives"], f"{where}: derivatives")
+    if options["stage"] not in STAGES:
+        raise FitSpecError(
+            f"{where}: stage = {options['stage']!r}: one of {', '.join(map(repr, STAGES))} ('output-error': the "
+            "simulation's error, from the equation-error start and others; 'equation-error': the torques' or slip "
+            "equations' linear least squares is the answer)"
+        )
     if options["horizon"] is not None:
         options["horizon"] = _number(options["horizon"], f"{where}: horizon")
         if not options["horizon"] > 0:
