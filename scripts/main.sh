@@ -18,6 +18,9 @@
 #   7. stickslip sweep examples/monte_carlo.toml --out results/monte_carlo  (its first 500 samples)
 #   7b. stickslip fit examples/calibration/calibration.toml --out results/calibration
 #       (docs/calibration.md: six parameters of the reference arm from two measured runs)
+#   7c. stickslip fit examples/calibration_motor/calibration.toml --out results/calibration_motor
+#       and its three held-out runs replayed (stickslip simulate --spec .../heldout.toml --fitted
+#       ... --horizon 0.25 --out results/calibration_motor/heldout): the torque-logged motor arm
 #   8. pytest tests/python -m slow --runslow   (exit 5 "no slow tests" is ok)
 #
 # Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments are
@@ -138,6 +141,14 @@ stickslip sweep examples/monte_carlo.toml --out "$RESULTS_DIR/monte_carlo" --sam
 # does not know; about 4 minutes on 2 busy cores.
 banner "stickslip fit examples/calibration/calibration.toml -> $RESULTS_DIR/calibration"
 stickslip fit examples/calibration/calibration.toml --out "$RESULTS_DIR/calibration"
+
+# The torque-logged motor arm (docs/calibration.md#torque-logged-arms): ten rotor and friction
+# parameters from three runs' logged torques, and the three held-out runs predicted over 0.25 s
+# with them (its FMU was built above for the axis controller).
+banner "stickslip fit examples/calibration_motor/calibration.toml -> $RESULTS_DIR/calibration_motor"
+stickslip fit examples/calibration_motor/calibration.toml --out "$RESULTS_DIR/calibration_motor"
+stickslip simulate --spec examples/calibration_motor/heldout.toml \
+    --fitted "$RESULTS_DIR/calibration_motor/fitted.toml" --horizon 0.25 --out "$RESULTS_DIR/calibration_motor/heldout"
 
 if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -name '*_test.py' \) -print -quit)" ]; then
     banner "pytest tests/python -m slow --runslow"
