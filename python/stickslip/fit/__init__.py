@@ -67,6 +67,7 @@ def fit(
     payloads = [payload_of(e, md, unpacked(fmu_data, digest), known) for e in spec.experiments]
     for e, p in zip(spec.experiments, payloads, strict=True):
         say(f"fit: experiment {e.name!r} starts " + _start_text(e, p))
+        say(f"fit: experiment {e.name!r}: derivative filter: {_filter_text(e)}")
     own_cluster = None
     if client is None and workers != 0:
         from ..cluster import connect
@@ -114,6 +115,7 @@ def fit(
             result["method"]["start"] = {
                 e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)
             }
+            result["method"]["derivatives"] = {e.name: _filter_text(e) for e in spec.experiments}
             result["_internal"]["payloads"] = payloads
             if problem.horizon is not None:
                 result["_internal"]["segments"] = problem.segments(problem.horizon)
@@ -145,6 +147,7 @@ def fit(
         best = min(finite, key=lambda s: s.cost)
         result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say)
         result["method"]["start"] = {e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)}
+        result["method"]["derivatives"] = {e.name: _filter_text(e) for e in spec.experiments}
         result["_internal"]["payloads"] = payloads
         if problem.horizon is not None:
             result["_internal"]["segments"] = problem.segments(problem.horizon)
@@ -273,6 +276,17 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "covariance": np.diag([p["std_error"] ** 2 for p in params.values()]),
         },
     }
+
+
+def _filter_text(experiment) -> str:
+    """The experiment's derivative filter, for the console and the report."""
+    from .filtering import describe
+
+    t = experiment.time
+    text = describe(experiment.derivatives, float(np.median(np.diff(t))), len(t))
+    if experiment.filtered_inputs:
+        text += f"; through it also the measured inputs {', '.join(experiment.filtered_inputs)}"
+    return text
 
 
 def _start_text(experiment, payload) -> str:

@@ -177,6 +177,7 @@ def report_md(result: dict, spec, figures: list) -> str:
         )
     lines += ["", "## Method", ""]
     lines += [f"- Experiment {name!r} starts {how}." for name, how in m.get("start", {}).items()]
+    lines += [f"- Experiment {name!r}: derivative filter {how}." for name, how in m.get("derivatives", {}).items()]
     lines += [f"- {note}" for note in m["equation_error_stage"]]
     if m.get("stage") == "equation-error":
         lines.append(
