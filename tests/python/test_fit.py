@@ -956,7 +956,8 @@ def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_r
     """200 seeded mutations of a valid SPEC (as a dict and as TOML: keys deleted or renamed,
     values of the wrong type, NaN, ±inf, huge numbers, strings) and of its data file (rows
     shuffled, swapped or reversed, the file truncated or emptied, bytes garbled, cells not
-    numbers or huge, columns dropped or duplicated, ragged rows), and of the TOML text itself:
+    numbers or huge, columns dropped or duplicated, ragged rows), and of the TOML text itself
+    (with the keys of issue 36: start, derivatives, stage, horizon):
     ``stickslip.fit.spec.load`` either returns a spec or raises FitSpecError with a one-line
     message; nothing else."""
     from stickslip.fit.spec import FitSpec, FitSpecError, load
@@ -970,6 +971,14 @@ def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_r
         doc = _base(root, short)
         # the encoder's count joins the mutated keys (a number, or "auto")
         _exp(doc)["measured"]["q[1]"]["resolution"] = rng.choice([1.5e-6, "auto", 0.0])
+        # issue 36's keys join them too: the start, the derivative filter, the stage, a horizon
+        _exp(doc)["start"] = rng.choice(["data", "rest"])
+        _exp(doc)["derivatives"] = rng.choice(
+            ["auto", "spline", {"method": "savgol", "window": 0.02, "order": 3}, {"method": "lowpass", "cutoff": 50.0}]
+        )
+        doc.setdefault("options", {})["stage"] = rng.choice(["output-error", "equation-error"])
+        if rng.random() < 0.5:
+            doc["options"].update(horizon=0.01, shooting="auto")
         data = root / "run.csv"
         what = []
         for _ in range(rng.choice([1, 1, 2, 3])):
