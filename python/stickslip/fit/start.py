@@ -59,6 +59,7 @@ class Segments:
     gear_force: np.ndarray | None = None
     gear_ratio: list = field(default_factory=list)
     measured: list = field(default_factory=list)  # joints whose start came from their measured q
+    how: dict = field(default_factory=dict)  # joint -> how it starts at the first segment, for the report
 
     def rotor(self, k: int, values) -> dict:
         """theta_m_start[i], omega_m_start[i] of segment k, with the gear's k[i] and Delta[i]
@@ -74,12 +75,8 @@ class Segments:
         return out
 
     def describe(self) -> str:
-        parts = []
-        if self.measured:
-            parts.append(f"joints {self.measured} at their filtered measured q, q'")
-        others = [i for i in self.joints if i not in self.measured]
-        if others:
-            parts.append(f"joints {others} at their commands")
+        """How the first segment starts, joint by joint (the report's line)."""
+        parts = [f"joint {i} {self.how.get(i, 'at its command (q not measured)')}" for i in self.joints]
         if self.motors:
             parts.append(f"rotors {self.motors} turned to carry the joints' load (inverse dynamics)")
         return "; ".join(parts)
@@ -122,22 +119,32 @@ def start_states(experiment, starts, md, unzipdir=None, known: dict | None = Non
         qd[:, i - 1] = 0.0
         qdd[:, i - 1] = 0.0
     rng = np.random.default_rng(0)
+    how = {}
     for i in measured:
         c = channels[f"q[{i}]"]
         value, rate, accel = derivatives(t, c.values, experiment.derivatives)
         noise = derivatives(t, rng.normal(0.0, c.std, len(t)), experiment.derivatives)[1]
         slow = np.abs(rate[starts]) <= NOISE_SIGMAS * float(np.std(noise))
         for row, k in enumerate(starts):
-            held = resting(c.values, int(k), NOISE_SIGMAS * c.std)
+            # the band: three noise standard deviations, and a count more where the samples are
+            # rounded (the median the band is taken around lies on the count's grid itself)
+            band = NOISE_SIGMAS * c.std + (c.resolution or 0.0)
+            held = resting(c.values, int(k), band)
             if held is not None:  # the joint stands still from this sample on
-                position, _ = held
-                if abs(position - q[row, i - 1]) <= NOISE_SIGMAS * c.std:
+                position, count = held
+                if abs(position - q[row, i - 1]) <= band:
                     position = q[row, i - 1]  # where its command puts it: the data cannot tell them apart
+                    said = f"at rest at its command q* = {position:.8g} (its {count} still samples within the noise)"
+                else:
+                    said = f"at rest at {position:.8g}, the mean of its {count} still samples"
                 q[row, i - 1], qd[row, i - 1], qdd[row, i - 1] = position, 0.0, 0.0
             else:
                 q[row, i - 1] = value[k]
                 qd[row, i - 1] = 0.0 if slow[row] else rate[k]
                 qdd[row, i - 1] = 0.0 if slow[row] else accel[k]
+                said = f"moving: q = {q[row, i - 1]:.8g}, q' = {qd[row, i - 1]:.6g} from the derivative filter"
+            if row == 0:
+                how[i] = said
     columns = [i - 1 for i in joints]
     force, ratios = None, []
     if motors:
@@ -151,7 +158,7 @@ def start_states(experiment, starts, md, unzipdir=None, known: dict | None = Non
         tau, _ = inverse_dynamics(unzipdir, np.hstack([q, qd, qdd]), settings)
         force = tau[:, [i - 1 for i in motors]]
         ratios = [float(values.get(f"gear_ratio[{i}]", 1.0)) for i in motors]
-    return Segments(starts, list(joints), q[:, columns], qd[:, columns], list(motors), force, ratios, measured)
+    return Segments(starts, list(joints), q[:, columns], qd[:, columns], list(motors), force, ratios, measured, how)
 
 
 def resting(values, k: int, tolerance: float, samples: int = REST_SAMPLES):
