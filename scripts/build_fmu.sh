@@ -13,10 +13,14 @@
 #                     iterating.
 #
 #   1. linux64: cargo build --release -p stick_slip_manipulator
-#      -p stick_slip_manipulator_fmi3 --lib --bin package_fmu (the FMI 2.0
-#      cdylib, the FMI 3.0 one of the crate fmi3/ and the packager; build.rs
-#      also writes modelDescription/modelDescription.xml). Each step below
-#      does the same for both libraries.
+#      -p stick_slip_manipulator_fmi3 --lib --bin package_fmu (the FMI 3.0
+#      cdylib of the crate fmi3/ and the packager; build.rs also writes
+#      modelDescription/modelDescription.xml), then the FMI 2.0 cdylib without
+#      the FMI 3.0 layer: cargo build --profile fmi2 -p stick_slip_manipulator
+#      --lib --no-default-features (the profile `fmi2` of Cargo.toml: release
+#      in target/fmi2/, so that the engine crate's two builds, with and
+#      without its feature `fmi3`, keep their files apart; docs/platforms.md).
+#      Each step below does the same for both libraries.
 #   2. win64: the same library cross-built for x86_64-pc-windows-gnu with
 #      Debian's rustc and mingw-w64 (scripts/win64.sh), target dir
 #      $STICKSLIP_CACHE_DIR/cross (outside the clone, shared by every clone)
@@ -91,7 +95,7 @@ mkdir -p "$TARGET_DIR"
 if [ "${RUSTC_WRAPPER:-}" = sccache ]; then sccache --start-server </dev/null >/dev/null 2>&1 || true; fi
 exec 7>"$TARGET_DIR/.build_fmu.lock"
 flock 7
-LIB="$TARGET_DIR/release/libstick_slip_manipulator.so"
+LIB="$TARGET_DIR/fmi2/libstick_slip_manipulator.so"
 LIB3="$TARGET_DIR/release/libstick_slip_manipulator_fmi3.so"
 STRIPPED="$TARGET_DIR/fmu/stripped"
 mkdir -p "$STRIPPED"
@@ -123,6 +127,8 @@ size() { stat -c %s "$1"; }
 linux_targets=(--lib --bin package_fmu)
 [ "${STICKSLIP_FMU_ALL_TARGETS:-0}" = 1 ] && linux_targets=(--all-targets)
 cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 "${linux_targets[@]}"
+# The FMI 2.0 library holds no FMI 3.0 code (the feature `fmi3` off).
+cargo build --profile fmi2 -p stick_slip_manipulator --lib --no-default-features
 SO="$STRIPPED/libstick_slip_manipulator.so"
 SO3="$STRIPPED/libstick_slip_manipulator_fmi3.so"
 strip --strip-all -o "$SO" "$LIB"
@@ -144,8 +150,9 @@ if [ "$win64" -eq 1 ]; then
     mkdir -p "$WIN64_TARGET_DIR"
     (
         flock 9
-        win64_cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib &&
-            cp "$WIN64_RELEASE/stick_slip_manipulator.dll" "$STRIPPED/unstripped.dll" &&
+        win64_cargo build --release -p stick_slip_manipulator_fmi3 --lib &&
+            win64_cargo build --profile fmi2 -p stick_slip_manipulator --lib --no-default-features &&
+            cp "$WIN64_FMI2/stick_slip_manipulator.dll" "$STRIPPED/unstripped.dll" &&
             cp "$WIN64_RELEASE/stick_slip_manipulator_fmi3.dll" "$STRIPPED/unstripped-fmi3.dll"
     ) 9>"$WIN64_LOCK"
     x86_64-w64-mingw32-strip --strip-all -o "$DLL" "$STRIPPED/unstripped.dll"

@@ -158,16 +158,18 @@ darwin64_build() {
     local triple lipo slices=() slices3=()
     lipo=$(_darwin64_llvm llvm-lipo) || return 1
     for triple in "${DARWIN64_TRIPLES[@]}"; do
-        slices+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator.dylib")
+        slices+=("$DARWIN64_CARGO_DIR/$triple/fmi2/libstick_slip_manipulator.dylib")
         slices3+=("$DARWIN64_CARGO_DIR/$triple/release/libstick_slip_manipulator_fmi3.dylib")
     done
     mkdir -p "$DARWIN64_TARGET_DIR" "$DARWIN64_CACHE_DIR"
     rm -f "$DARWIN64_DYLIB" "$DARWIN64_DYLIB3"
     # Build and merge under the shared cache's lock: another clone's build
-    # cannot replace the slices in between. Both FMI versions' libraries.
+    # cannot replace the slices in between. Both FMI versions' libraries, the
+    # FMI 2.0 one without the FMI 3.0 layer (profile fmi2, scripts/build_fmu.sh).
     (
         flock 9
-        darwin64_cargo build --release -p stick_slip_manipulator -p stick_slip_manipulator_fmi3 --lib &&
+        darwin64_cargo build --release -p stick_slip_manipulator_fmi3 --lib &&
+            darwin64_cargo build --profile fmi2 -p stick_slip_manipulator --lib --no-default-features &&
             "$lipo" -create "${slices[@]}" -output "$DARWIN64_DYLIB" &&
             "$lipo" -create "${slices3[@]}" -output "$DARWIN64_DYLIB3"
     ) 9>"$DARWIN64_LOCK"

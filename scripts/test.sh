@@ -5,7 +5,9 @@
 #
 #   0. formatters and linters, each a stage that fails the run:
 #      cargo fmt --all --check, cargo clippy --workspace --all-targets -- -D warnings (the
-#      workspace: the engine crate and fmi3/; and tests/win64), ruff check, ruff format --check
+#      workspace: the engine crate and fmi3/; and tests/win64), the same on the engine crate
+#      as the FMI 2.0 library is built (--lib --no-default-features: without its feature
+#      fmi3), ruff check, ruff format --check
 #   1. cargo test --release --all-targets --no-fail-fast  (release: physics tests are heavy)
 #   2. cargo test --release --doc           (doc tests; only if there is a lib target)
 #   3. FMU packaging hook: scripts/build_fmu.sh, if it exists: linux64, win64
@@ -137,6 +139,9 @@ run_check_stage() {
 run_check_stage "rustfmt" -- cargo fmt --all --check
 run_check_stage "rustfmt-win64" -- cargo fmt --manifest-path tests/win64/Cargo.toml --check
 run_check_stage "clippy" -- cargo clippy --release --workspace --all-targets --quiet -- -D warnings
+# The FMI 2.0 library's build (scripts/build_fmu.sh): the engine crate without its feature fmi3.
+run_check_stage "clippy-fmi2" -- cargo clippy --release -p stick_slip_manipulator --lib --no-default-features \
+    --quiet -- -D warnings
 if [ "$QUICK" -eq 0 ]; then
     run_check_stage "clippy-win64" -- cargo clippy --release --quiet --manifest-path tests/win64/Cargo.toml \
         --target-dir "${CARGO_TARGET_DIR:-$ROOT/target}" --all-targets -- -D warnings

@@ -30,6 +30,7 @@ WIN64_TARGET=x86_64-pc-windows-gnu
 WIN64_TARGET_DIR="${STICKSLIP_CACHE_DIR:?scripts/env.sh sets STICKSLIP_CACHE_DIR}/cross"
 WIN64_LOCK="$WIN64_TARGET_DIR.lock"
 WIN64_RELEASE="$WIN64_TARGET_DIR/$WIN64_TARGET/release"
+WIN64_FMI2="$WIN64_TARGET_DIR/$WIN64_TARGET/fmi2"   # the FMI 2.0 library (profile fmi2, scripts/build_fmu.sh)
 # The DLLs the FMU's DLL may import (lower case, an extended regex matched
 # whole): Windows' own, present on every Windows 10/11 (the api-ms-win-* API
 # sets since Windows 7/8). Anything else (libgcc_s_seh-1, libwinpthread-1)

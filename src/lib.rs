@@ -5,6 +5,7 @@ pub mod algorithms;
 pub mod data;
 pub mod error;
 pub mod fmi;
+#[cfg(feature = "fmi3")]
 #[doc(hidden)]
 pub mod fmi3;
 pub mod forces;

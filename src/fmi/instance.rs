@@ -9,8 +9,10 @@ use super::snapshot::{self, Snapshot};
 use super::status::{Fault, Outcome, Status};
 use crate::error::StepError;
 use crate::model::{Model, ModelSource};
+#[cfg(feature = "fmi3")]
+use crate::stepper::SubStep;
 use crate::stepper::{
-    DriveInputs, Flow, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, SubStep, INPUT_RANGES,
+    DriveInputs, Flow, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, INPUT_RANGES,
     MOTOR_TORQUE_RANGES,
 };
 use fmi_sys::fmi2::{fmi2Boolean, fmi2Integer, fmi2ValueReference};
@@ -21,10 +23,6 @@ enum Value {
     Real(f64),
     Boolean(bool),
 }
-
-/// What FMI 3.0's layer runs at the end of each sub-step inside a step
-/// ([`Instance::do_step_observed`]).
-pub(crate) type AfterSubStep<'a> = dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError> + 'a;
 
 /// The result of [`finite_outputs`].
 type FiniteCheck = Result<(), (String, f64)>;
@@ -622,49 +620,11 @@ impl Instance {
         self.step(t, h, advance).map(|(status, _)| status)
     }
 
-    /// fmi3DoStep with an observer of the sub-steps (FMI 3.0's intermediate
-    /// update and early return): `after` is told at the end of each sub-step
-    /// before the step's end and may end the step there ([`Flow::Stop`]).
-    pub(crate) fn do_step_observed(
-        &mut self,
-        t: f64,
-        h: f64,
-        after: &mut AfterSubStep<'_>,
-    ) -> Result<(Status, Flow), Fault> {
-        let advance = |sim: &mut Simulator, inputs: &DriveInputs<'_>, check: &dyn Fn(&State) -> FiniteCheck| {
-            sim.advance_observed(inputs, h, check, |s| after(s))
-        };
-        self.step(t, h, advance)
-    }
-
-    /// The drive inputs and motor torques become the values the engine holds
-    /// now (their Taylor polynomials at the current time): after a step that
-    /// returned early, or took inputs at its sub-steps, the next step goes on
-    /// with them unless the master sets others.
-    pub(crate) fn hold_inputs_now(&mut self) {
-        let [x, xd, xdd] = &mut self.inputs;
-        let [u, ud, udd] = &mut self.torques;
-        self.sim.held_inputs([x, xd, xdd], [u, ud, udd]);
-    }
-
-    /// The variables of the FMU (the FMI 2.0 layout).
-    pub(crate) fn variables(&self) -> &[Variable] {
-        &self.variables
-    }
-
-    /// Where the instance is in the FMI 2.0 life cycle.
-    pub(crate) fn lifecycle(&self) -> LifeCycle {
-        self.lifecycle
-    }
-
-    /// The engine.
-    pub(crate) fn simulator(&self) -> &Simulator {
-        &self.sim
-    }
-
-    /// The checks and results of a step around `advance` (the FMI 2.0 step,
-    /// or FMI 3.0's observed one: generic, so that the FMI 2.0 library holds
-    /// only the stepping loop without an observer).
+    /// The checks and results of a step around `advance`: the FMI 2.0 step
+    /// ([`Instance::do_step`]) or FMI 3.0's observed one
+    /// (`Instance::do_step_observed`), one implementation monomorphized for
+    /// each, and only for the first in the FMI 2.0 library (built without
+    /// the feature `fmi3`).
     fn step(
         &mut self,
         t: f64,
@@ -863,5 +823,55 @@ impl Instance {
         self.static_start = static_start;
         self.stale = lifecycle.is_configuring();
         Ok(Status::Ok)
+    }
+}
+
+/// What FMI 3.0's layer runs at the end of each sub-step inside a step
+/// ([`Instance::do_step_observed`]).
+#[cfg(feature = "fmi3")]
+pub(crate) type AfterSubStep<'a> = dyn FnMut(&mut SubStep<'_>) -> Result<Flow, StepError> + 'a;
+
+/// What the FMI 3.0 layer (`crate::fmi3`) runs and reads of the FMI 2.0
+/// instance underneath it.
+#[cfg(feature = "fmi3")]
+impl Instance {
+    /// fmi3DoStep with an observer of the sub-steps (FMI 3.0's intermediate
+    /// update and early return): `after` is told at the end of each sub-step
+    /// before the step's end and may end the step there ([`Flow::Stop`]).
+    pub(crate) fn do_step_observed(
+        &mut self,
+        t: f64,
+        h: f64,
+        after: &mut AfterSubStep<'_>,
+    ) -> Result<(Status, Flow), Fault> {
+        let advance = |sim: &mut Simulator, inputs: &DriveInputs<'_>, check: &dyn Fn(&State) -> FiniteCheck| {
+            sim.advance_observed(inputs, h, check, |s| after(s))
+        };
+        self.step(t, h, advance)
+    }
+
+    /// The drive inputs and motor torques become the values the engine holds
+    /// now (their Taylor polynomials at the current time): after a step that
+    /// returned early, or took inputs at its sub-steps, the next step goes on
+    /// with them unless the master sets others.
+    pub(crate) fn hold_inputs_now(&mut self) {
+        let [x, xd, xdd] = &mut self.inputs;
+        let [u, ud, udd] = &mut self.torques;
+        self.sim.held_inputs([x, xd, xdd], [u, ud, udd]);
+    }
+
+    /// The variables of the FMU (the FMI 2.0 layout).
+    pub(crate) fn variables(&self) -> &[Variable] {
+        &self.variables
+    }
+
+    /// Where the instance is in the FMI 2.0 life cycle.
+    pub(crate) fn lifecycle(&self) -> LifeCycle {
+        self.lifecycle
+    }
+
+    /// The engine.
+    pub(crate) fn simulator(&self) -> &Simulator {
+        &self.sim
     }
 }

@@ -1,8 +1,11 @@
 //! Messages to the master's logger callback, filtered by log category.
 
-use super::description::{in_fmi3_terms, LOG_CATEGORIES};
+#[cfg(feature = "fmi3")]
+use super::description::in_fmi3_terms;
+use super::description::LOG_CATEGORIES;
 use super::status::Status;
 use fmi_sys::fmi2::{fmi2CallbackLogger, fmi2ComponentEnvironment};
+#[cfg(feature = "fmi3")]
 use fmi_sys::fmi3::{fmi3InstanceEnvironment, fmi3LogMessageCallback};
 use std::ffi::CString;
 
@@ -49,6 +52,7 @@ enum Sink {
     Callback { callback: fmi2CallbackLogger, environment: fmi2ComponentEnvironment, instance_name: CString },
     /// The master's `fmi3LogMessageCallback` (FMI 3.0: no instance name, no
     /// printf format).
+    #[cfg(feature = "fmi3")]
     Fmi3 { callback: fmi3LogMessageCallback, environment: fmi3InstanceEnvironment },
     /// Kept in memory, for the unit tests.
     #[cfg(test)]
@@ -75,6 +79,7 @@ impl Logger {
     }
 
     /// A logger calling the FMI 3.0 `callback` with `environment`.
+    #[cfg(feature = "fmi3")]
     pub(crate) fn fmi3(
         callback: fmi3LogMessageCallback,
         environment: fmi3InstanceEnvironment,
@@ -142,6 +147,7 @@ impl Logger {
                     callback(*environment, instance_name.as_ptr(), status.to_fmi(), category.as_ptr(), text.as_ptr())
                 }
             }
+            #[cfg(feature = "fmi3")]
             Sink::Fmi3 { callback, environment } => {
                 let Some(callback) = callback else { return };
                 let text = CString::new(in_fmi3_terms(message).replace('\0', " ")).unwrap_or_default();

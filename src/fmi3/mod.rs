@@ -4,6 +4,8 @@
 //! [`Instance`](crate::fmi) underneath, with FMI 3.0's modes on top of its
 //! life cycle, early return at stick-slip and clearance events, and the
 //! intermediate update of the drive inputs at the engine's own sub-steps.
+//! Compiled with the crate's feature `fmi3` (on by default), which the FMI
+//! 2.0 library is built without (docs/platforms.md).
 //!
 //! * [`api`] — every FMI 3.0 function, as plain `extern "C"` functions. The
 //!   library `StickSlipManipulator` of the FMI 3.0 FMU is the crate `fmi3/`,

@@ -75,13 +75,6 @@ impl InputPolynomial {
     }
 }
 
-/// `p`'s value and first two derivatives at `t`, per joint, into `out`.
-pub(super) fn held(p: &InputPolynomial, t: f64, [x, xd, xdd]: [&mut [f64]; 3]) {
-    for i in 0..p.q.len() {
-        (x[i], xd[i], xdd[i]) = p.eval(i, t);
-    }
-}
-
 /// Checks three input vectors (a value and its two derivatives) against
 /// their names and ranges: n values each, finite, inside the range.
 pub(super) fn check_input_values(

@@ -62,7 +62,9 @@ pub(crate) struct Integrator {
     pub(crate) transitions: Vec<Transition>,
     pub(crate) transitions_dropped: usize,
     /// The last sub-step ended at a located event: the decisions of the
-    /// current instant are of the current time.
+    /// current instant are of the current time (read by FMI 3.0's
+    /// `carry_decisions`, src/stepper/substep.rs).
+    #[cfg_attr(not(feature = "fmi3"), allow(dead_code))]
     pub(crate) located_now: bool,
 }
 
@@ -264,21 +266,6 @@ impl Integrator {
             _ => {}
         }
         self.settle_phases().map(|()| true)
-    }
-
-    /// The joints decided at the current instant stay decided through the
-    /// next `instants` instants: those of the same physical time that new
-    /// inputs (FMI 3.0's intermediate update, the step after an early return)
-    /// begin. A joint that just broke away with q̇ = 0 would otherwise stick
-    /// again for a sliver when the inputs move by their rounding.
-    pub(crate) fn carry_decisions(&mut self, instants: u64) {
-        if !self.located_now {
-            return;
-        }
-        let now = self.instant;
-        for d in self.decided.iter_mut().filter(|d| **d >= now) {
-            *d = (*d).max(now + instants);
-        }
     }
 
     /// Phase changes so far, kept or only counted.

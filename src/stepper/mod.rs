@@ -8,6 +8,7 @@ mod newmark;
 mod reported;
 mod simulator;
 mod state;
+#[cfg(feature = "fmi3")]
 mod substep;
 
 pub use inputs::{DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
@@ -15,4 +16,5 @@ pub use integrator::{Flow, Transition, TRANSITION_LOG_CAPACITY};
 pub use isa::InstructionSet;
 pub use simulator::{InitialState, RotorStart, Simulator};
 pub use state::{Energy, Phase, State, StepStatistics};
+#[cfg(feature = "fmi3")]
 pub(crate) use substep::SubStep;

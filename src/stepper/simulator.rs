@@ -1,12 +1,11 @@
 //! The simulator: a model, its workspace and its state, advanced over
 //! communication intervals by the iterative Newmark stepper.
 
-use super::inputs::{check_input_values, held, DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use super::inputs::{check_input_values, DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
 use super::integrator::{AfterSubStep, Flow, Integrator, NoObserver, Transition};
 use super::isa::InstructionSet;
 use super::reported::{update_energies, update_reported};
 use super::state::{Phase, State};
-use super::substep::{Observer, SubStep};
 use crate::algorithms::kinematics::{forget_joint_transforms, update_joint_transforms};
 use crate::algorithms::rnea::rnea;
 use crate::data::Data;
@@ -173,13 +172,6 @@ impl Simulator {
         check_input_values(self.core.model.nq(), MOTOR_TORQUE_RANGES, values)?;
         self.core.torques.set_values(self.core.state.time, values);
         Ok(())
-    }
-
-    /// The drive inputs and motor torques the engine holds at the current
-    /// time (their Taylor polynomials), into `drive` and `torques`.
-    pub(crate) fn held_inputs(&self, drive: [&mut [f64]; 3], torques: [&mut [f64]; 3]) {
-        held(&self.core.inputs, self.core.state.time, drive);
-        held(&self.core.torques, self.core.state.time, torques);
     }
 
     /// Where the rotors of motor drives start at the next
@@ -390,7 +382,7 @@ impl Simulator {
     }
 
     /// The checks before an interval, and the snapshot its failure restores.
-    fn begin_interval(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
+    pub(super) fn begin_interval(&mut self, inputs: &DriveInputs, interval: f64) -> Result<(), StepError> {
         if !(interval.is_finite() && interval > 0.0) {
             return Err(StepError::InvalidInterval { interval });
         }
@@ -404,34 +396,7 @@ impl Simulator {
         Ok(())
     }
 
-    /// [`Simulator::advance_checked`] with `after` told at the end of every
-    /// sub-step before the interval's end (FMI 3.0's intermediate update),
-    /// which may end the interval there ([`Flow::Stop`], FMI 3.0's early
-    /// return): then the state is at that sub-step's end, and the interval
-    /// was shorter than `interval`. The inputs `after` sets through
-    /// [`SubStep`] hold from the sub-step's end on.
-    pub(crate) fn advance_observed<F: FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>>(
-        &mut self,
-        inputs: &DriveInputs,
-        interval: f64,
-        check: impl FnOnce(&State) -> Result<(), (String, f64)>,
-        after: F,
-    ) -> Result<Flow, StepError> {
-        self.begin_interval(inputs, interval)?;
-        let mut observer = Observer { after, scratch: self.scratch.clone(), report: None };
-        let result = self.advance_inner(inputs, interval, &mut observer);
-        let result = result.and_then(|flow| self.checked(check).map(|()| flow));
-        match result {
-            // The next interval starts at this instant (its start and its
-            // first sub-step's): the phases decided here stand through both.
-            Ok(Flow::Stop) => self.core.carry_decisions(2),
-            Ok(Flow::Continue) => {}
-            Err(_) => self.core.state.copy_from(&self.saved),
-        }
-        result
-    }
-
-    fn advance_inner<F: AfterSubStep>(
+    pub(super) fn advance_inner<F: AfterSubStep>(
         &mut self,
         inputs: &DriveInputs,
         interval: f64,
@@ -460,7 +425,7 @@ impl Simulator {
     }
 
     /// `check` of the current state as a step result.
-    fn checked(&self, check: impl FnOnce(&State) -> Result<(), (String, f64)>) -> Result<(), StepError> {
+    pub(super) fn checked(&self, check: impl FnOnce(&State) -> Result<(), (String, f64)>) -> Result<(), StepError> {
         check(&self.core.state).map_err(|(quantity, value)| StepError::NonFiniteOutput {
             quantity,
             value,

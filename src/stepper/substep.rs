@@ -1,16 +1,24 @@
-//! The end of a sub-step as a caller of
-//! [`Simulator::advance_observed`](super::Simulator::advance_observed) sees
-//! it: FMI 3.0's intermediate update (outputs and inputs at the engine's own
-//! sub-steps) and early return (the interval ends at an event).
+//! FMI 3.0's path through the engine (compiled with the feature `fmi3`
+//! only): a communication interval observed at the end of every sub-step
+//! ([`Simulator::advance_observed`]), the end of a sub-step as the observer
+//! sees it ([`SubStep`]: FMI 3.0's intermediate update, outputs and inputs at
+//! the engine's own sub-steps, and early return, the interval ends at an
+//! event), and the decisions of an event's instant carried through the
+//! inputs set there ([`Integrator::carry_decisions`]). The stepping loop is
+//! the FMI 2.0 one, generic over its observer ([`AfterSubStep`]): here it is
+//! monomorphized for [`Observer`].
 //!
 //! Nothing here changes the trajectory unless the caller sets inputs: the
 //! reported quantities (reactions, end points, energies) are computed on a
 //! copy of the state and workspace, since the workspace's cached joint
 //! transforms are part of how the next sub-step is computed.
 
-use super::inputs::{check_input_values, held, DriveInputs, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES};
+use super::inputs::{
+    check_input_values, DriveInputs, InputPolynomial, MotorTorques, INPUT_RANGES, MOTOR_TORQUE_RANGES,
+};
 use super::integrator::{AfterSubStep, Flow, Integrator};
 use super::reported::{report, update_energies};
+use super::simulator::Simulator;
 use super::state::State;
 use crate::data::Data;
 use crate::error::StepError;
@@ -96,5 +104,65 @@ impl<F: FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>> AfterSubStep for Obs
     fn substep_finished(&mut self, core: &mut Integrator, event: bool) -> Result<Flow, StepError> {
         let mut step = SubStep { core, event, report: &mut self.report, scratch: &mut self.scratch };
         (self.after)(&mut step)
+    }
+}
+
+impl Simulator {
+    /// [`Simulator::advance_checked`] with `after` told at the end of every
+    /// sub-step before the interval's end (FMI 3.0's intermediate update),
+    /// which may end the interval there ([`Flow::Stop`], FMI 3.0's early
+    /// return): then the state is at that sub-step's end, and the interval
+    /// was shorter than `interval`. The inputs `after` sets through
+    /// [`SubStep`] hold from the sub-step's end on.
+    pub(crate) fn advance_observed<F: FnMut(&mut SubStep<'_>) -> Result<Flow, StepError>>(
+        &mut self,
+        inputs: &DriveInputs,
+        interval: f64,
+        check: impl FnOnce(&State) -> Result<(), (String, f64)>,
+        after: F,
+    ) -> Result<Flow, StepError> {
+        self.begin_interval(inputs, interval)?;
+        let mut observer = Observer { after, scratch: self.scratch.clone(), report: None };
+        let result = self.advance_inner(inputs, interval, &mut observer);
+        let result = result.and_then(|flow| self.checked(check).map(|()| flow));
+        match result {
+            // The next interval starts at this instant (its start and its
+            // first sub-step's): the phases decided here stand through both.
+            Ok(Flow::Stop) => self.core.carry_decisions(2),
+            Ok(Flow::Continue) => {}
+            Err(_) => self.core.state.copy_from(&self.saved),
+        }
+        result
+    }
+
+    /// The drive inputs and motor torques the engine holds at the current
+    /// time (their Taylor polynomials), into `drive` and `torques`.
+    pub(crate) fn held_inputs(&self, drive: [&mut [f64]; 3], torques: [&mut [f64]; 3]) {
+        held(&self.core.inputs, self.core.state.time, drive);
+        held(&self.core.torques, self.core.state.time, torques);
+    }
+}
+
+impl Integrator {
+    /// The joints decided at the current instant stay decided through the
+    /// next `instants` instants: those of the same physical time that new
+    /// inputs (FMI 3.0's intermediate update, the step after an early return)
+    /// begin. A joint that just broke away with q̇ = 0 would otherwise stick
+    /// again for a sliver when the inputs move by their rounding.
+    pub(crate) fn carry_decisions(&mut self, instants: u64) {
+        if !self.located_now {
+            return;
+        }
+        let now = self.instant;
+        for d in self.decided.iter_mut().filter(|d| **d >= now) {
+            *d = (*d).max(now + instants);
+        }
+    }
+}
+
+/// `p`'s value and first two derivatives at `t`, per joint, into `out`.
+fn held(p: &InputPolynomial, t: f64, [x, xd, xdd]: [&mut [f64]; 3]) {
+    for i in 0..p.q.len() {
+        (x[i], xd[i], xdd[i]) = p.eval(i, t);
     }
 }

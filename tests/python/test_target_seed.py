@@ -1,5 +1,5 @@
-"""scripts/target-seed.sh: a fresh clone's target/release starts from the last full run's,
-without the workspace's own packages' fingerprints (so cargo compiles those from the
+"""scripts/target-seed.sh: a fresh clone's target/release (and target/fmi2, the FMI 2.0
+library's profile) starts from the last full run's, without the workspace's own packages' fingerprints (so cargo compiles those from the
 clone's sources), and the seed is keyed by the toolchain and both Cargo.lock files.
 
 Run on a made-up target dir in a scratch cache: the script's bash functions, as
@@ -61,6 +61,23 @@ def test_the_seed_keeps_the_dependencies_and_forgets_the_workspace(clone, tmp_pa
     restored = {d.name for d in (fresh / "target" / "release" / ".fingerprint").iterdir()}
     assert restored == set(DEPENDENCY_UNITS)
     assert (fresh / "target" / "release" / "deps" / "libnalgebra-1234.rlib").read_bytes() == b"rlib"
+
+
+def test_the_fmi2_profile_directory_is_seeded_too(clone, tmp_path):
+    """target/fmi2 (scripts/build_fmu.sh's FMI 2.0 library) is saved and restored like
+    target/release, each on its own: a clone that has release/ but not fmi2/ gets fmi2/."""
+    fmi2 = clone / "target" / "fmi2"
+    for unit in WORKSPACE_UNITS[:1] + DEPENDENCY_UNITS:
+        (fmi2 / ".fingerprint" / unit).mkdir(parents=True)
+    cache = tmp_path / "cache"
+    p = run(clone, cache, 'target_seed_save "$PWD/target"')
+    assert p.returncode == 0 and "saved fmi2 release of" in p.stdout, p.stdout + p.stderr
+    shutil.rmtree(fmi2)
+    (clone / "target" / "release" / "mine").write_text("kept")
+    p = run(clone, cache, 'target_seed_restore "$PWD/target"')
+    assert p.returncode == 0 and "target/fmi2 from" in p.stdout and "target/release" not in p.stdout, p.stdout
+    assert {d.name for d in (fmi2 / ".fingerprint").iterdir()} == set(DEPENDENCY_UNITS)
+    assert (clone / "target" / "release" / "mine").read_text() == "kept"
 
 
 def test_a_clone_with_a_target_dir_keeps_its_own(clone, tmp_path):

@@ -8,10 +8,13 @@
 //! compiles this folder into itself together with `src/model`, `src/error.rs`,
 //! `src/math.rs` and `src/stepper/state.rs`, so code here may use only
 //! `crate::model`, `crate::error`, `crate::math`, `crate::stepper::State`,
-//! `super::…` and the `quick_xml` crate.
+//! `super::…` and the `quick_xml` crate. The FMI 3.0 parts (`arrays`,
+//! `writer3`, `fmi3_terms`) are compiled with the feature `fmi3` only.
 
+#[cfg(feature = "fmi3")]
 mod arrays;
 mod documentation;
+#[cfg(feature = "fmi3")]
 mod fmi3_terms;
 mod hash;
 mod joints;
@@ -19,10 +22,13 @@ mod outputs;
 mod units;
 mod variables;
 mod writer;
+#[cfg(feature = "fmi3")]
 mod writer3;
 
+#[cfg(feature = "fmi3")]
 pub use arrays::{variables3, Type3, Variable3};
 pub use documentation::{documentation_html, drive_colour_index, escape_html, DRIVE_COLOURS};
+#[cfg(feature = "fmi3")]
 pub use fmi3_terms::in_fmi3_terms;
 pub use hash::{fnv1a_64, Fnv1a128};
 pub(crate) use joints::joint_units;
@@ -32,6 +38,7 @@ pub use variables::{
     guid, model_hash, variables, Causality, Initial, InputField, Quantity, Setting, Type, Variability, Variable,
 };
 pub use writer::model_description_xml;
+#[cfg(feature = "fmi3")]
 pub use writer3::model_description_fmi3_xml;
 
 /// The modelIdentifier: file name of the shared library in the FMU and of the
