@@ -8,14 +8,11 @@
 //! bit: every output array but the stepper statistics, after initialization and
 //! after each step.
 //!
-//! Two things the crate cannot do, and what is done instead:
-//!
-//! * its schema refuses a `<Float64>` with a `unit` attribute, which FMI 3.0
-//!   allows and our modelDescription uses (`tests/win64/src/fmi3_schema.rs`
-//!   has the details): the crate gets a copy of the FMU whose modelDescription
-//!   lacks the float variables' `unit` and `displayUnit` attributes, nothing
-//!   else changed; the FMU under test is not touched;
-//! * its FMI 3.0 instance has no FMU-state functions (`get_fmu_state` and
+//! The crate reads the FMU as shipped: its schema has no `unit` on a
+//! `<Float64>` variable, and the FMU's variables name their units'
+//! `Float64Type` in `declaredType` instead ([`import`] checks that the crate
+//! sees them). One thing the crate cannot do, and what is done instead: its
+//! FMI 3.0 instance has no FMU-state functions (`get_fmu_state` and
 //!   `set_fmu_state` are behind `#[cfg(false)]` in its `fmi3/traits.rs` and
 //!   `fmi3/instance/common.rs`) and keeps the instance pointer private: the
 //!   state test calls the C functions through the crate's raw bindings
@@ -31,21 +28,16 @@
 //! tests/engine/fmi_crate.rs does.
 
 use std::ffi::{c_char, CStr, CString};
-use std::io::{Cursor, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use fmi::fmi3::import::Fmi3Import;
 use fmi::fmi3::instance::InstanceCS;
 use fmi::fmi3::{binding, CoSimulation, Common, Fmi3Model, GetSet};
-use fmi::schema::fmi3::{Causality, VariableType};
+use fmi::schema::fmi3::{Causality, Float64Type, TypeDefinition, Variable, VariableType};
 use fmi::traits::FmiImport;
 use stick_slip_manipulator::motion::reference_inputs;
 use stick_slip_manipulator::{DriveInputs, Model, Simulator, State};
-
-#[allow(dead_code)]
-#[path = "../win64/src/fmi3_schema.rs"]
-mod fmi3_schema;
 
 const STEP: f64 = 1e-3;
 const STEPS: usize = 100;
@@ -95,56 +87,37 @@ fn fmu3_file() -> Option<PathBuf> {
     }
 }
 
-/// The FMU as the `fmi` crate's importer: unchanged if the crate can parse it,
-/// otherwise (fmi-schema 0.8: units of float variables) a copy whose
-/// modelDescription lacks the float variables' `unit`/`displayUnit`.
+/// The FMU as the `fmi` crate's importer, as shipped. The units the crate
+/// reads come through `declaredType`: every Float64 variable that names a
+/// type finds it among the `Float64Type`s, with a unit; the reference arm's
+/// `x_E` is in m (displayed in mm), `f` in N.
 fn import(path: &Path) -> Fmi3Import {
-    let error = match fmi::import::from_path::<Fmi3Import>(path) {
-        Ok(import) => {
-            eprintln!("fmi3_crate: the fmi crate imports {} unchanged", path.display());
-            return import;
-        }
-        Err(e) => e,
-    };
-    fmi3_schema::assert_known_refusal(&error);
-    let (bytes, removed) = without_float_units(path);
-    eprintln!(
-        "fmi3_crate: the fmi crate refuses {} ({}); imported with the {removed} unit/displayUnit attributes \
-         of its float variables removed from its modelDescription (tests/win64/src/fmi3_schema.rs)",
-        path.display(),
-        fmi3_schema::FLOAT64_UNIT_REJECTED
-    );
-    fmi::import::new::<_, Fmi3Import>(Cursor::new(bytes)).expect("the fmi crate imports the FMU without float units")
-}
-
-/// The `.fmu` at `path` rezipped in memory with `strip_float_units` applied to
-/// its modelDescription.xml (every other entry copied byte for byte), and how
-/// many attributes that removed.
-fn without_float_units(path: &Path) -> (Vec<u8>, usize) {
-    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("open {}: {e}", path.display()));
-    let mut archive = zip::ZipArchive::new(file).expect("the FMU is a zip archive");
-    let mut writer = zip::ZipWriter::new(Cursor::new(Vec::new()));
-    let options = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
-    let mut removed = None;
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).expect("zip entry");
-        let name = entry.name().to_owned();
-        if entry.is_dir() {
-            writer.add_directory(name, options).expect("zip directory");
-            continue;
-        }
-        let mut data = Vec::new();
-        entry.read_to_end(&mut data).expect("read zip entry");
-        if name == "modelDescription.xml" {
-            let (xml, n) = fmi3_schema::strip_float_units(std::str::from_utf8(&data).expect("UTF-8"));
-            removed = Some(n);
-            data = xml.into_bytes();
-        }
-        writer.start_file(name, options).expect("zip entry");
-        writer.write_all(&data).expect("write zip entry");
+    let import = fmi::import::from_path::<Fmi3Import>(path)
+        .unwrap_or_else(|e| panic!("the fmi crate cannot import {} as shipped: {e:?}", path.display()));
+    let md = import.model_description();
+    let types: Vec<&Float64Type> = md
+        .type_definitions
+        .iter()
+        .flat_map(|t| &t.type_definitions)
+        .filter_map(|t| if let TypeDefinition::Float64(f) = t { Some(f) } else { None })
+        .collect();
+    let mut units = Vec::new();
+    for v in &md.model_variables.variables {
+        let Variable::Float64(x) = v else { continue };
+        let Some(declared) = x.declared_type.as_deref() else { continue };
+        let t = types.iter().find(|t| t.name == declared).unwrap_or_else(|| panic!("`{}`: no type {declared}", x.name));
+        units.push((x.name.as_str(), t.unit.as_deref().expect("a type with a unit"), t.display_unit.as_deref()));
     }
-    let bytes = writer.finish().expect("zip").into_inner();
-    (bytes, removed.expect("the FMU has a modelDescription.xml"))
+    for expected in [("x_E", "m", Some("mm")), ("f", "N", None)] {
+        assert!(units.contains(&expected), "{expected:?} not among the units the crate reads: {units:?}");
+    }
+    eprintln!(
+        "fmi3_crate: the fmi crate imports {} as shipped; {} Float64 variables with a unit through {} types",
+        path.display(),
+        units.len(),
+        types.len()
+    );
+    import
 }
 
 fn vr(import: &Fmi3Import, name: &str) -> u32 {

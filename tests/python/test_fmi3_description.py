@@ -1,6 +1,6 @@
 """The FMI 3.0 FMU as ``package_fmu --fmi3`` packs it: its modelDescription (the FMI 2.0
-variables grouped into arrays, src/fmi/description/arrays.rs and writer3.rs) read and
-validated by fmpy, and the archive's layout (binaries per FMI 3.0 platform tuple, the
+variables grouped into arrays, src/fmi/description/arrays.rs and writer3.rs; units through
+``declaredType`` and the ``TypeDefinitions``) read and validated by fmpy, and the archive's layout (binaries per FMI 3.0 platform tuple, the
 universal macOS dylib split into its two slices, terminalsAndIcons/icon.png,
 documentation/ and resources/ as in the FMI 2.0 FMU).
 
@@ -112,6 +112,14 @@ def fmu(key: str, fmi3: bool = True) -> Path:
     return out
 
 
+def unit_of(v):
+    """(unit, displayUnit) of an fmpy variable through its declared type: the FMI 3.0
+    variables carry neither themselves (the ``fmi`` crate's schema refuses them there)."""
+    assert (v.unit, v.displayUnit) == (None, None), f"{v.name} carries a unit itself"
+    t = v.declaredType
+    return (t.unit, t.displayUnit) if t is not None else (None, None)
+
+
 def raw_variables(path: Path) -> dict:
     """The ModelVariables elements of the FMU's modelDescription.xml by name (fmpy does not
     read every FMI 3.0 attribute, e.g. intermediateUpdate)."""
@@ -185,18 +193,19 @@ def test_the_reference_arm_declares_dimensions_types_and_units():
         assert dims(name) == [4], name
     assert dims("f") == dims("n") == [4, 3]
     assert dims("x_E") == [3] and dims("eps") == []
-    assert (v["f"].unit, v["n"].unit, v["t_stick"].unit) == ("N", "N.m", "s")
-    assert (v["x_E"].unit, v["x_E"].displayUnit, v["eps"].unit, v["eps"].displayUnit) == ("m", "mm", "m", "mm")
+    assert (unit_of(v["f"])[0], unit_of(v["n"])[0], unit_of(v["t_stick"])[0]) == ("N", "N.m", "s")
+    assert unit_of(v["x_E"]) == unit_of(v["eps"]) == ("m", "mm")
+    assert v["x_E"].declaredType.name == "Length"
     # Joint 3 is prismatic: q mixes rad and m, so it has no unit and names each element's.
-    assert v["q"].unit is None
+    assert unit_of(v["q"]) == (None, None)
     assert "unit per element: rad (joints 1, 2, 4), m (joint 3)" in v["q"].description
     assert (v["stick"].type, v["n_stick"].type, v["n_substeps"].type) == ("Boolean", "Int32", "Int32")
     assert v["n_stick"].variability == "discrete"
     # The flexible joints 1 and 3 only have a drive spring.
     assert dims("k") == [2] and "(elements: joints 1, 3)" in v["k"].description
     assert (v["k"].causality, v["k"].variability, v["k"].start) == ("parameter", "tunable", "1000000 1000000")
-    assert (v["m"].unit, v["m"].start) == ("kg", "25 15 8 4")
-    assert (v["h_max"].variability, v["h_max"].unit) == ("fixed", "s")
+    assert (unit_of(v["m"])[0], v["m"].start) == ("kg", "25 15 8 4")
+    assert (v["h_max"].variability, unit_of(v["h_max"])[0]) == ("fixed", "s")
     for name in ("q_star", "qd_star", "qdd_star"):
         assert (v[name].causality, v[name].start) == ("input", "0 0 0 0"), name
     outputs = [x.valueReference for x in md.modelVariables if x.causality == "output"]
@@ -210,7 +219,38 @@ def test_an_all_revolute_arm_declares_rad_with_deg():
     v = {x.name: x for x in md.modelVariables}
     for name, unit, display in (("q", "rad", "deg"), ("qd", "rad/s", "deg/s"), ("q_star", "rad", "deg")):
         assert [int(d.start) for d in v[name].dimensions] == [7], name
-        assert (v[name].unit, v[name].displayUnit) == (unit, display), name
+        assert unit_of(v[name]) == (unit, display), name
+
+
+@pytest.mark.parametrize("key", MODELS)
+def test_every_unit_comes_through_a_declared_type_and_equals_fmi_2_0s(key):
+    """Every Float64 variable with a physical unit reaches it through its ``declaredType``
+    (no variable carries ``unit`` or ``displayUnit`` itself, in the XML as written): one
+    ``Float64Type`` per unit, each used, its display unit the unit's first in the
+    ``UnitDefinitions``. The unit equals that of every FMI 2.0 element of the array; an
+    array whose elements differ in unit (q of an arm with revolute and prismatic joints),
+    or have none, declares no type."""
+    md2 = fmpy.read_model_description(str(fmu(key, fmi3=False)), validate=True)
+    md3 = fmpy.read_model_description(str(fmu(key)), validate=True)
+    for name, e in raw_variables(fmu(key)).items():
+        assert e.get("unit") is None and e.get("displayUnit") is None, name
+    units2 = {}
+    for v in md2.modelVariables:
+        units2.setdefault(v.name.split("[")[0], set()).add(v.unit)
+    display = {u.name: [d.name for d in u.displayUnits] for u in md3.unitDefinitions}
+    types = md3.typeDefinitions
+    assert len({t.name for t in types}) == len({t.unit for t in types}) == len(types) > 0
+    used, with_unit = set(), 0
+    for v in md3.modelVariables[1:]:
+        unit, shown = unit_of(v)
+        (shared,) = units2[v.name] if len(units2[v.name]) == 1 else (None,)
+        assert unit == (shared if v.type == "Float64" else None), (key, v.name, unit, units2[v.name])
+        if unit is not None:
+            with_unit += 1
+            used.add(v.declaredType.name)
+            assert shown == (display[unit][0] if display[unit] else None), (v.name, shown)
+    assert used == {t.name for t in types}
+    print(f"{key}: {with_unit} Float64 variables with a unit, through {len(types)} types: {sorted(used)}")
 
 
 @pytest.mark.parametrize("key", ["reference", "motor"])
@@ -224,7 +264,7 @@ def test_the_drive_inputs_allow_intermediate_update(key):
     if key == "motor":
         tau_m = raw["tau_m"]
         assert [d.get("start") for d in tau_m.findall("Dimension")] == ["2"]
-        assert (tau_m.get("unit"), tau_m.get("start")) == ("N.m", "0 0")
+        assert (tau_m.get("unit"), tau_m.get("declaredType"), tau_m.get("start")) == (None, "Torque", "0 0")
         assert "(elements: joints 1, 3)" in tau_m.get("description")
 
 

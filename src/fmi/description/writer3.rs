@@ -6,10 +6,12 @@
 //! units, log categories and default experiment are FMI 2.0's; the
 //! `instantiationToken` is FMI 2.0's GUID. An array's attributes come from
 //! its elements: causality, variability and `initial` are theirs (a count,
-//! `Int32`, is `discrete`); `unit` when all elements share one (the joint
+//! `Int32`, is `discrete`); the unit, when all elements share one (the joint
 //! quantities of an arm with revolute and prismatic joints do not: then the
-//! description names each element's unit), with the unit's first display
-//! unit; `min`/`max` the loosest over the elements (FMI 3.0 has one range per
+//! description names each element's unit), through `declaredType`: one
+//! `Float64Type` per unit in the `TypeDefinitions`, named after its quantity,
+//! with the unit and its first display unit; `min`/`max` the loosest over the
+//! elements (FMI 3.0 has one range per
 //! variable; the description gives each element's own where they differ,
 //! the FMU checks those); `start` the elements' start values in
 //! serialization order. The description is the elements' FMI 2.0
@@ -20,7 +22,7 @@ use super::arrays::{split_name, variables3, Type3, Variable3};
 use super::joints::joint_label;
 use super::outputs::Arity;
 use super::variables::{guid, variables, Causality, Initial, Quantity, Type, Variability, Variable};
-use super::{in_fmi3_terms, DEFAULT_EXPERIMENT, LOG_CATEGORIES, MODEL_IDENTIFIER, UNITS};
+use super::{in_fmi3_terms, Unit, DEFAULT_EXPERIMENT, LOG_CATEGORIES, MODEL_IDENTIFIER, UNITS};
 use crate::model::{JointKind, Model};
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
@@ -104,6 +106,7 @@ fn write_document(
         .write_inner_content(|w| {
             write_co_simulation(w)?;
             write_units(w)?;
+            write_type_definitions(w, vars, vars3)?;
             write_log_categories(w)?;
             let (start, stop, step) = DEFAULT_EXPERIMENT;
             w.create_element("DefaultExperiment")
@@ -160,6 +163,48 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
                 }
                 Ok(())
             })?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}
+
+/// The unit of the FMI 3.0 variable `v3`: its elements' when they are FMI 2.0
+/// Reals that all have the same (none for `time`, the Int32 and Boolean
+/// arrays, dimensionless quantities and arrays of mixed units).
+fn array_unit(vars: &[Variable], v3: &Variable3) -> Option<&'static Unit> {
+    let mut units = v3.elements.iter().map(|&e| match vars[e as usize].ty {
+        Type::Real { unit, .. } if v3.ty == Type3::Float64 => unit,
+        _ => None,
+    });
+    let first = units.next()??;
+    if !units.all(|u| u == Some(first)) {
+        return None;
+    }
+    Some(
+        UNITS.iter().find(|u| u.name == first).unwrap_or_else(|| panic!("`{}`: unit {first} is not in UNITS", v3.name)),
+    )
+}
+
+/// One `Float64Type` per unit that a variable has, in the order of [`UNITS`]:
+/// named after the unit's quantity (`Length`: `unit="m"`,
+/// `displayUnit="mm"`), the unit's first display unit as its `displayUnit`.
+/// The variables name it in `declaredType` instead of carrying `unit` and
+/// `displayUnit` themselves, as the FMI reference FMUs do: every importer
+/// reads units that way, the `fmi` crate's schema among them, which refuses
+/// `unit` on a variable.
+fn write_type_definitions(w: &mut Writer<Vec<u8>>, vars: &[Variable], vars3: &[Variable3]) -> io::Result<()> {
+    let used: Vec<&Unit> =
+        UNITS.iter().filter(|u| vars3.iter().any(|v| array_unit(vars, v).is_some_and(|a| a.name == u.name))).collect();
+    if used.is_empty() {
+        // The schema wants at least one type in a TypeDefinitions element.
+        return Ok(());
+    }
+    w.create_element("TypeDefinitions").write_inner_content(|w| {
+        for unit in used {
+            let mut attributes = vec![("name", unit.quantity), ("quantity", unit.quantity), ("unit", unit.name)];
+            attributes.extend(unit.display.first().map(|(display, _)| ("displayUnit", *display)));
+            w.create_element("Float64Type").with_attributes(attributes).write_empty()?;
         }
         Ok(())
     })?;
@@ -297,9 +342,8 @@ fn array_description(model: &Model, elements: &Elements) -> String {
     text
 }
 
-/// Unit, bounds and start of one FMI 2.0 Real.
+/// Bounds and start of one FMI 2.0 Real.
 struct RealAttributes {
-    unit: Option<&'static str>,
     min: Option<f64>,
     max: Option<f64>,
     start: Option<f64>,
@@ -374,16 +418,11 @@ fn write_variable(w: &mut Writer<Vec<u8>>, model: &Model, vars: &[Variable], v3:
             let reals: Vec<RealAttributes> = members
                 .iter()
                 .map(|v| match v.ty {
-                    Type::Real { unit, min, max, start } => RealAttributes { unit, min, max, start },
+                    Type::Real { min, max, start, .. } => RealAttributes { min, max, start },
                     Type::Boolean { .. } => unreachable!("a Float64 of FMI 2.0 Reals"),
                 })
                 .collect();
-            let unit = reals[0].unit.filter(|u| reals.iter().all(|r| r.unit == Some(u)));
-            if let Some(u) = unit {
-                a.push(("unit", u.to_string()));
-                let display = UNITS.iter().find(|d| d.name == u).and_then(|d| d.display.first());
-                a.extend(display.map(|(name, _)| ("displayUnit", name.to_string())));
-            }
+            a.extend(array_unit(vars, v3).map(|u| ("declaredType", u.quantity.to_string())));
             a.extend(loosest(reals.iter().map(|r| r.min), f64::min).map(|x| ("min", real(x))));
             a.extend(loosest(reals.iter().map(|r| r.max), f64::max).map(|x| ("max", real(x))));
             let starts: Option<Vec<String>> = reals.iter().map(|r| r.start.map(real)).collect();
@@ -500,6 +539,18 @@ mod tests {
         fn all(&self, tag: &str) -> Vec<&Element> {
             self.others.iter().filter(|e| e.tag == tag).collect()
         }
+
+        /// The unit and display unit of variable `name` through its
+        /// `declaredType` (a variable carries neither itself).
+        fn unit(&self, name: &str) -> (Option<&str>, Option<&str>) {
+            let v = self.variable(name);
+            assert_eq!((v.get("unit"), v.get("displayUnit")), (None, None), "`{name}` carries a unit itself");
+            let Some(declared) = v.get("declaredType") else { return (None, None) };
+            let types = self.all("Float64Type");
+            let t =
+                types.iter().find(|t| t.get("name") == Some(declared)).unwrap_or_else(|| panic!("no type {declared}"));
+            (t.get("unit"), t.get("displayUnit"))
+        }
     }
 
     fn parse(xml: &str) -> Parsed {
@@ -563,12 +614,13 @@ mod tests {
         assert_eq!(p.variable("q").dimensions, [4]);
         assert_eq!(p.variable("f").dimensions, [4, 3]);
         assert_eq!(p.variable("f").tag, "Float64");
-        assert_eq!((p.variable("f").get("unit"), p.variable("f").get("displayUnit")), (Some("N"), None));
-        assert_eq!((p.variable("x_E").get("unit"), p.variable("x_E").get("displayUnit")), (Some("m"), Some("mm")));
-        assert_eq!((p.variable("eps").get("unit"), p.variable("eps").get("displayUnit")), (Some("m"), Some("mm")));
+        assert_eq!(p.unit("f"), (Some("N"), None));
+        assert_eq!(p.variable("f").get("declaredType"), Some("Force"));
+        assert_eq!(p.unit("x_E"), (Some("m"), Some("mm")));
+        assert_eq!(p.unit("eps"), (Some("m"), Some("mm")));
         // Joint 3 is prismatic: q mixes rad and m, so it names each element's unit instead.
+        assert_eq!(p.unit("q"), (None, None));
         let q = p.variable("q");
-        assert_eq!(q.get("unit"), None);
         assert!(q.get("description").unwrap().contains("unit per element: rad (joints 1, 2, 4), m (joint 3)"), "{q:?}");
         assert!(q.get("description").unwrap().starts_with("Joint coordinate q of each joint"), "{q:?}");
         // k exists for the flexible joints 1 and 3 only.
@@ -673,17 +725,14 @@ mod tests {
         let tau_m = p.variable("tau_m");
         assert_eq!(tau_m.dimensions, [2]);
         assert_eq!(
-            (tau_m.get("unit"), tau_m.get("intermediateUpdate"), tau_m.get("start")),
+            (p.unit("tau_m").0, tau_m.get("intermediateUpdate"), tau_m.get("start")),
             (Some("N.m"), Some("true"), Some("0 0"))
         );
         assert!(tau_m.get("description").unwrap().ends_with("(elements: joints 1, 3)"), "{tau_m:?}");
         assert!(tau_m.get("description").unwrap().starts_with("Motor torque tau_m of each joint"), "{tau_m:?}");
         assert_eq!(p.variable("static_start").tag, "Boolean");
         assert_eq!(p.variable("n_stick_m").tag, "Int32");
-        assert_eq!(
-            (p.variable("theta_m").get("unit"), p.variable("theta_m").get("displayUnit")),
-            (Some("rad"), Some("deg"))
-        );
+        assert_eq!(p.unit("theta_m"), (Some("rad"), Some("deg")));
     }
 
     #[test]
@@ -698,9 +747,8 @@ mod tests {
             ("qdd", "rad/s2", Some("deg/s2")),
             ("F_drive", "N.m", None),
         ] {
-            let v = p.variable(name);
-            assert_eq!(v.dimensions, [6], "{name}");
-            assert_eq!((v.get("unit"), v.get("displayUnit")), (Some(unit), display), "{name}");
+            assert_eq!(p.variable(name).dimensions, [6], "{name}");
+            assert_eq!(p.unit(name), (Some(unit), display), "{name}");
         }
         assert_eq!(p.variable("f").dimensions, [6, 3]);
     }
@@ -731,5 +779,52 @@ mod tests {
                 .ends_with("whose own ranges the FMU checks: [-1, 1] for joints 1, 2, 4, [-2, 0.5] for joint 3"),
             "{q_star:?}"
         );
+    }
+
+    /// Each unit once, through a `Float64Type` named after its quantity, and
+    /// every Float64 array whose FMI 2.0 elements share a unit names that
+    /// type: no variable carries `unit` or `displayUnit` itself, every type is
+    /// used, and the units are the FMI 2.0 elements'.
+    #[test]
+    fn units_come_through_type_definitions_once_each() {
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/models/urdf/xarm6/xarm6.toml");
+        let urdf = std::fs::read_to_string(file).unwrap();
+        for (model, text) in [
+            (Model::reference_rrpr(), REFERENCE_RRPR_TOML.to_string()),
+            (Model::from_toml_str(REFERENCE_RRPR_MOTOR_TOML).unwrap(), REFERENCE_RRPR_MOTOR_TOML.to_string()),
+            (Model::from_file(file).unwrap(), urdf),
+        ] {
+            let vars = variables(&model);
+            let vars3 = variables3(&vars);
+            let p = fmi3(&model, &text);
+            let types = p.all("Float64Type");
+            let names: Vec<&str> = types.iter().map(|t| t.get("name").unwrap()).collect();
+            let units: Vec<&str> = types.iter().map(|t| t.get("unit").unwrap()).collect();
+            let distinct: std::collections::BTreeSet<&str> = units.iter().copied().collect();
+            assert_eq!(distinct.len(), units.len(), "{}: one type per unit: {units:?}", model.name);
+            for t in &types {
+                let unit = UNITS.iter().find(|u| Some(u.name) == t.get("unit")).expect("a unit of UNITS");
+                assert_eq!((t.get("name"), t.get("quantity")), (Some(unit.quantity), Some(unit.quantity)));
+                assert_eq!(t.get("displayUnit"), unit.display.first().map(|(d, _)| *d));
+            }
+            let mut used = Vec::new();
+            for (v, v3) in p.variables.iter().zip(&vars3) {
+                let element_units: Vec<Option<&str>> = v3
+                    .elements
+                    .iter()
+                    .map(|&e| match vars[e as usize].ty {
+                        Type::Real { unit, .. } => unit,
+                        Type::Boolean { .. } => None,
+                    })
+                    .collect();
+                let shared =
+                    element_units.first().copied().flatten().filter(|u| element_units.iter().all(|x| x == &Some(*u)));
+                let expected = if v.tag == "Float64" { shared } else { None };
+                assert_eq!(p.unit(&v3.name).0, expected, "{}: `{}`", model.name, v3.name);
+                used.extend(v.get("declaredType"));
+            }
+            assert!(names.iter().all(|n| used.contains(n)), "{}: a type no variable uses", model.name);
+            assert!(!types.is_empty() && types.len() < UNITS.len(), "{}", model.name);
+        }
     }
 }

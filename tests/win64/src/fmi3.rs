@@ -14,23 +14,20 @@
 //!   set at the communication points only. Its [`Stops`] (time, kind and
 //!   outputs of every return) travel between the platforms like a `Record`.
 //!
-//! The crate's schema (fmi-schema 0.8) refuses the FMU's float variables'
-//! `unit` attributes: [`import3`] hands it a copy without them
-//! ([`crate::fmi3_schema`]). The crate's FMI 3.0 instance has no FMU-state
+//! The crate reads the FMU as shipped ([`import3`]): its units come through
+//! the variables' `declaredType` (the crate's schema, fmi-schema 0.8, has no
+//! `unit` on a variable). The crate's FMI 3.0 instance has no FMU-state
 //! functions, so no state travels here (the FMI 2.0 stages exchange the same
 //! serialized form, `src/fmi/snapshot.rs`).
-
-use std::io::{Cursor, Read, Write};
-use std::path::Path;
 
 use fmi::fmi3::import::Fmi3Import;
 use fmi::fmi3::instance::InstanceCS;
 use fmi::fmi3::{CoSimulation, Common, Fmi3Model, GetSet};
-use fmi::schema::fmi3::{ArrayableVariableTrait, Causality, Variable};
+use fmi::schema::fmi3::{ArrayableVariableTrait, Causality, Float64Type, TypeDefinition, Variable};
 use fmi::traits::FmiImport;
 use fmi::EventFlags;
 
-use crate::{fmi3_schema, hex, platform, required_env, unhex, xplat_file, Record, STEP, STEPS};
+use crate::{hex, platform, required_env, unhex, xplat_file, Record, STEP, STEPS};
 
 /// Communication steps of the early-return run (0.2 s).
 pub const EARLY_RETURN_STEPS: usize = 200;
@@ -38,55 +35,47 @@ pub const EARLY_RETURN_STEPS: usize = 200;
 /// Stepper statistics: not compared (see `STATISTICS` in lib.rs).
 const STATISTICS: [&str; 3] = ["n_substeps", "n_rejected", "h_last"];
 
-/// The FMI 3.0 FMU under test, `$STICKSLIP_FMU3`, imported for this platform:
-/// unchanged if the crate can parse it, otherwise without the float
-/// variables' `unit`/`displayUnit` attributes (the one known refusal).
+/// The FMI 3.0 FMU under test, `$STICKSLIP_FMU3`, imported for this platform
+/// as shipped. Its units come through the variables' `declaredType`, as the
+/// crate reads them ([`float64_units`]); the reference arm's `x_E` is in m.
 pub fn import3() -> Fmi3Import {
     let path = required_env("STICKSLIP_FMU3");
-    match fmi::import::from_path::<Fmi3Import>(&path) {
-        Ok(import) => return import,
-        Err(e) => fmi3_schema::assert_known_refusal(&e),
-    }
-    let (bytes, removed) = without_float_units(&path);
+    let import = fmi::import::from_path::<Fmi3Import>(&path)
+        .unwrap_or_else(|e| panic!("the fmi crate cannot import {} as shipped: {e:?}", path.display()));
+    let units = float64_units(&import);
+    assert!(units.iter().any(|(name, unit)| name == "x_E" && unit == "m"), "units of {}: {units:?}", path.display());
     eprintln!(
-        "{}: the fmi crate refuses {} ({}); imported with the {removed} unit/displayUnit attributes of its \
-         float variables removed from its modelDescription",
+        "{}: the fmi crate imports {} as shipped; {} Float64 variables have a unit through their declaredType",
         platform(),
         path.display(),
-        fmi3_schema::FLOAT64_UNIT_REJECTED
+        units.len()
     );
-    fmi::import::new::<_, Fmi3Import>(Cursor::new(bytes))
-        .unwrap_or_else(|e| panic!("the fmi crate cannot import {} without float units: {e}", path.display()))
+    import
 }
 
-/// The `.fmu` rezipped in memory with `strip_float_units` applied to its
-/// modelDescription.xml (every other entry copied byte for byte), and how
-/// many attributes that removed.
-fn without_float_units(path: &Path) -> (Vec<u8>, usize) {
-    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("open {}: {e}", path.display()));
-    let mut archive = zip::ZipArchive::new(file).expect("the FMU is a zip archive");
-    let mut writer = zip::ZipWriter::new(Cursor::new(Vec::new()));
-    let options = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
-    let mut removed = None;
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).expect("zip entry");
-        let name = entry.name().to_owned();
-        if entry.is_dir() {
-            writer.add_directory(name, options).expect("zip directory");
-            continue;
-        }
-        let mut data = Vec::new();
-        entry.read_to_end(&mut data).expect("read zip entry");
-        if name == "modelDescription.xml" {
-            let (xml, n) = fmi3_schema::strip_float_units(std::str::from_utf8(&data).expect("UTF-8"));
-            removed = Some(n);
-            data = xml.into_bytes();
-        }
-        writer.start_file(name, options).expect("zip entry");
-        writer.write_all(&data).expect("write zip entry");
-    }
-    let bytes = writer.finish().expect("zip").into_inner();
-    (bytes, removed.expect("the FMU has a modelDescription.xml"))
+/// (name, unit) of every Float64 variable with a unit, as the `fmi` crate
+/// reads the modelDescription: the variable names a `Float64Type` of the
+/// `TypeDefinitions` in `declaredType`, which carries the unit (the crate's
+/// schema has no `unit` on a variable).
+pub fn float64_units(import: &Fmi3Import) -> Vec<(String, String)> {
+    let md = import.model_description();
+    let types: Vec<&Float64Type> = md
+        .type_definitions
+        .iter()
+        .flat_map(|t| &t.type_definitions)
+        .filter_map(|t| if let TypeDefinition::Float64(f) = t { Some(f) } else { None })
+        .collect();
+    md.model_variables
+        .variables
+        .iter()
+        .filter_map(|v| if let Variable::Float64(x) = v { Some(x) } else { None })
+        .filter_map(|x| {
+            let declared = x.declared_type.as_deref()?;
+            let t =
+                types.iter().find(|t| t.name == declared).unwrap_or_else(|| panic!("`{}`: no type {declared}", x.name));
+            Some((x.name.clone(), t.unit.clone().unwrap_or_else(|| panic!("type {declared} without a unit"))))
+        })
+        .collect()
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]

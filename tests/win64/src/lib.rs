@@ -22,7 +22,6 @@ mod motion;
 
 /// The FMI 3.0 master (`$STICKSLIP_FMU3`): tests/linux64_fmi3.rs, tests/win64_fmi3.rs.
 pub mod fmi3;
-pub mod fmi3_schema;
 
 /// Communication step, s.
 pub const STEP: f64 = 1e-3;
