@@ -1,8 +1,8 @@
 """The FMI 3.0 FMU as ``package_fmu --fmi3`` packs it: its modelDescription (the FMI 2.0
 variables grouped into arrays, src/fmi/description/arrays.rs and writer3.rs; units through
-``declaredType`` and the ``TypeDefinitions``) read and validated by fmpy, and the archive's layout (binaries per FMI 3.0 platform tuple, the
-universal macOS dylib split into its two slices, terminalsAndIcons/icon.png,
-documentation/ and resources/ as in the FMI 2.0 FMU).
+``declaredType`` and the ``TypeDefinitions``) read and validated by fmpy, and the archive's
+layout (binaries per FMI 3.0 platform tuple, the universal macOS dylib split into its two
+slices, terminalsAndIcons/icon.png, documentation/ and resources/ as in the FMI 2.0 FMU).
 
 The FMUs are packed into the scratch directory from the reference arm, the motor-drive arm
 and the KUKA iiwa URDF arm. The binaries in them are stand-ins: the linux64 library is the

@@ -1,6 +1,7 @@
 """scripts/target-seed.sh: a fresh clone's target/release (and target/fmi2, the FMI 2.0
-library's profile) starts from the last full run's, without the workspace's own packages' fingerprints (so cargo compiles those from the
-clone's sources), and the seed is keyed by the toolchain and both Cargo.lock files.
+library's profile) starts from the last full run's, without the workspace's own packages'
+fingerprints (so cargo compiles those from the clone's sources), and the seed is keyed by
+the toolchain and both Cargo.lock files.
 
 Run on a made-up target dir in a scratch cache: the script's bash functions, as
 scripts/test.sh calls them, in a copy of the files the key is made of."""
