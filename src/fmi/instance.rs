@@ -826,6 +826,24 @@ impl Instance {
     }
 }
 
+/// [`Instance::continue_held_inputs`] for one group of inputs (value, rate,
+/// acceleration per element).
+#[cfg(feature = "fmi3")]
+fn continue_within_reach(set: &mut [Vec<f64>; 3], held: &[Vec<f64>; 3], interval: f64) -> usize {
+    let mut kept = 0;
+    for i in 0..set[0].len() {
+        let curvature = held[2][i].abs().max(set[2][i].abs());
+        let reach = 0.25 * curvature * interval * interval + 1e-12 * held[0][i].abs().max(1.0);
+        if (set[0][i] - held[0][i]).abs() <= reach {
+            for k in 0..3 {
+                set[k][i] = held[k][i];
+            }
+            kept += 1;
+        }
+    }
+    kept
+}
+
 /// What FMI 3.0's layer runs at the end of each sub-step inside a step
 /// ([`Instance::do_step_observed`]).
 #[cfg(feature = "fmi3")]
@@ -860,6 +878,30 @@ impl Instance {
         self.sim.held_inputs([x, xd, xdd], [u, ud, udd]);
     }
 
+    /// At the instant of an early return, before the step that resumes
+    /// there: each drive input (and motor torque) whose value the master set
+    /// within `interval`'s interpolation reach of the held polynomial goes
+    /// on as that polynomial (value, rate and acceleration held), and the
+    /// others are taken as set. `interval` is the master's communication
+    /// interval the return fell in. The reach is what a master's linear
+    /// interpolation of the same signal between its communication points
+    /// can differ from it: |ẍ|·H²/8 with the larger of the held and the set
+    /// second derivative, doubled, plus 1e-12 of the value for rounding.
+    /// Returns how many inputs went on held.
+    pub(crate) fn continue_held_inputs(&mut self, interval: f64) -> usize {
+        let n = self.inputs[0].len();
+        let m = self.torques[0].len();
+        let mut held = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        let mut held_torques = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
+        {
+            let [x, xd, xdd] = &mut held;
+            let [u, ud, udd] = &mut held_torques;
+            self.sim.held_inputs([x, xd, xdd], [u, ud, udd]);
+        }
+        continue_within_reach(&mut self.inputs, &held, interval)
+            + continue_within_reach(&mut self.torques, &held_torques, interval)
+    }
+
     /// The variables of the FMU (the FMI 2.0 layout).
     pub(crate) fn variables(&self) -> &[Variable] {
         &self.variables
@@ -873,5 +915,26 @@ impl Instance {
     /// The engine.
     pub(crate) fn simulator(&self) -> &Simulator {
         &self.sim
+    }
+}
+
+#[cfg(all(test, feature = "fmi3"))]
+mod continue_tests {
+    use super::continue_within_reach;
+
+    /// The reach of an interval H: |ẍ|·H²/4 (the larger of the held and set
+    /// second derivatives) plus 1e-12 of the value; an input within it goes on
+    /// held (all three of its values), one beyond it is taken as set.
+    #[test]
+    fn an_input_within_the_interpolation_reach_goes_on_held() {
+        let h = 1e-3;
+        let held = [vec![1.0, 1.0, 0.0], vec![0.5, 0.5, 0.0], vec![4.0, 4.0, 0.0]];
+        let reach = 0.25 * 4.0 * h * h + 1e-12; // 1e-6 + rounding
+        let mut set = [vec![1.0 + 0.99 * reach, 1.0 + 1.01 * reach, 2e-12], vec![0.6, 0.6, 0.0], vec![3.0, 3.0, 0.0]];
+        let kept = continue_within_reach(&mut set, &held, h);
+        assert_eq!(kept, 1, "only the first: the second is beyond reach, the third beyond rounding of a line");
+        assert_eq!([set[0][0], set[1][0], set[2][0]], [1.0, 0.5, 4.0]);
+        assert_eq!([set[0][1], set[1][1], set[2][1]], [1.0 + 1.01 * reach, 0.6, 3.0]);
+        assert_eq!(set[0][2], 2e-12);
     }
 }

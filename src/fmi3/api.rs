@@ -526,7 +526,7 @@ pub unsafe extern "C" fn fmi3GetFMUState(instance: fmi3Instance, FMUState: *mut 
 }
 
 pub unsafe extern "C" fn fmi3SetFMUState(instance: fmi3Instance, FMUState: fmi3FMUState) -> fmi3Status {
-    unsafe { with_instance(instance, "fmi3SetFMUState", ANY, |inst, _| inst.inner.restore(&state(FMUState)?.bytes)) }
+    unsafe { with_instance(instance, "fmi3SetFMUState", ANY, |inst, _| inst.restore(&state(FMUState)?.bytes)) }
 }
 
 pub unsafe extern "C" fn fmi3FreeFMUState(instance: fmi3Instance, FMUState: *mut fmi3FMUState) -> fmi3Status {

@@ -89,6 +89,10 @@ pub(crate) struct Instance3 {
     early_return_allowed: bool,
     intermediate: fmi3IntermediateUpdateCallback,
     environment: fmi3InstanceEnvironment,
+    /// After an early return: its instant and the master's communication
+    /// interval it fell in (the step that resumes there continues the held
+    /// inputs the master re-sampled: [`Instance::continue_held_inputs`]).
+    resume: Option<(f64, f64)>,
 }
 
 impl Instance3 {
@@ -111,6 +115,7 @@ impl Instance3 {
             early_return_allowed,
             intermediate,
             environment,
+            resume: None,
         }
     }
 
@@ -179,7 +184,15 @@ impl Instance3 {
     /// fmi3Reset.
     pub(crate) fn reset(&mut self) -> Outcome {
         self.event_mode = false;
+        self.resume = None;
         self.inner.reset()
+    }
+
+    /// fmi3SetFMUState: the instance at the state's time, no early return
+    /// pending.
+    pub(crate) fn restore(&mut self, bytes: &[u8]) -> Outcome {
+        self.resume = None;
+        self.inner.restore(bytes)
     }
 
     // ---- values -------------------------------------------------------------------
@@ -316,6 +329,16 @@ impl Instance3 {
             };
             return Ok((status, report));
         }
+        // A step that resumes at an early return's instant: inputs the master
+        // set there that re-sample the held signal continue it (docs/fmi3.md,
+        // early return): a drive does not jump at an instant the FMU chose.
+        let interval = match self.resume.take() {
+            Some((at, interval)) if (t - at).abs() <= 1e-9 * at.abs().max(1.0) => {
+                self.inner.continue_held_inputs(interval);
+                interval
+            }
+            _ => h,
+        };
         let (callback, environment, early_allowed) = (self.intermediate, self.environment, self.early_return_allowed);
         let scalars = Arc::clone(&self.scalars);
         let n = self.inner.simulator().model().nq();
@@ -348,6 +371,9 @@ impl Instance3 {
         let early_return = flow == Flow::Stop;
         if early_return || inputs_set {
             self.inner.hold_inputs_now();
+        }
+        if early_return {
+            self.resume = Some((self.inner.time(), interval));
         }
         let report = StepReport {
             event_handling_needed: early_return && stopped_at_event && self.event_mode_used,

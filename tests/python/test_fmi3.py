@@ -481,3 +481,89 @@ def test_exact_inputs_at_events_add_no_stiction_slivers(fmu3, at_sub_steps, at_e
     for (t3, *_), (t2, *_) in zip(events, fmi2_events, strict=True):
         assert abs(float(t3) - float(t2)) < 1e-4
     assert np.array_equal(n_stick, expected["n_stick"][-1])
+
+
+def _reference_signals():
+    """The reference motion at the 1 ms communication points as fmpy's input table (FMI 3.0
+    arrays: one field per array variable)."""
+    from stickslip.motion import reference_inputs
+
+    n = round(RUN_TIME / INTERVAL)
+    table = np.zeros(
+        n + 1, dtype=[("time", float), ("q_star", float, (4,)), ("qd_star", float, (4,)), ("qdd_star", float, (4,))]
+    )
+    for k in range(n + 1):
+        t = k * INTERVAL
+        table[k] = (t, *reference_inputs(t))
+    return table
+
+
+@pytest.mark.parametrize("use_event_mode", [False, True])
+def test_fmpy_early_return_gives_the_fmi2_events_and_stiction_counts(fmu3, use_event_mode):
+    """Issue 37: fmpy's simulate_fmu with early_return_allowed (with and without event mode)
+    sets the inputs again at each early return, linearly interpolated between its
+    communication points (up to 6e-7 rad off the held polynomial). Those values re-sample
+    the signal the FMU holds, so they continue it: the run logs the FMI 2.0 run's 16
+    stick-slip events, in the same order, at its instants to 1e-9 s, and ends with n_stick
+    3, 0, 7, 0 (before: 24 events, n_stick[3] = 11, the just-broken-away joint stuck again
+    4e-15 to 2e-14 s after each breakaway)."""
+    from fmpy import simulate_fmu
+
+    n = round(RUN_TIME / INTERVAL)
+    expected, fmi2_events = fmi2_reference(n, logging_on=True)
+    messages = []
+    result = simulate_fmu(
+        str(fmu3),
+        stop_time=RUN_TIME,
+        output_interval=INTERVAL,
+        input=_reference_signals(),
+        output=["n_stick"],
+        early_return_allowed=True,
+        use_event_mode=use_event_mode,
+        debug_logging=True,
+        logger=lambda *args: messages.append(args),
+    )
+    events = [
+        m.groups()
+        for args in messages
+        if b"logEvents" in args and (m := EVENT.search(args[-1].decode("utf-8", "replace")))
+    ]
+    assert len(fmi2_events) == 16
+    assert [e[1:] for e in events] == [e[1:] for e in fmi2_events]
+    for (t3, *_), (t2, *_) in zip(events, fmi2_events, strict=True):
+        assert abs(float(t3) - float(t2)) < 1e-9
+    assert np.array_equal(result["n_stick"][-1], expected["n_stick"][-1])
+    assert list(result["n_stick"][-1]) == [3, 0, 7, 0]
+    assert len(result) > n + 1, "the master returned early"
+
+
+def test_inputs_beyond_the_held_signal_at_an_early_return_are_taken(fmu3):
+    """A master that sets a genuinely different input at an early return gets it from that
+    instant: joint 3's q* set 1e-4 m above the held polynomial at the first early return
+    (beyond what interpolating the signal explains: |q̈*|·H²/4 ≈ 1e-7 m) moves the drive's lag
+    eps_joint[3] = q*_3 − q_3 by that much at once; one set within 1e-9 m of it continues the
+    held polynomial (the lag as without it, to 1e-12)."""
+
+    def lag_after_first_return(offset: float):
+        with Slave3(early_return_allowed=True) as s:
+            s.initialize()
+            t, k = 0.0, 0
+            while True:
+                if t == k * INTERVAL:
+                    s.set_inputs(input_vector(t))
+                _, _, early, last = s.do_step(t, (k + 1) * INTERVAL - t)
+                if early:
+                    if offset is not None:
+                        q = np.array(s.get("q_star"))  # the held polynomial's value at the return
+                        q[2] += offset
+                        s.set("q_star", q)
+                    _, _, _, after = s.do_step(last, 1e-6)
+                    return s.get("eps_joint")[2], after
+                k, t = k + 1, (k + 1) * INTERVAL
+
+    held, t_held = lag_after_first_return(None)
+    beyond, t_beyond = lag_after_first_return(1e-4)
+    within, _ = lag_after_first_return(1e-9)
+    assert t_held == t_beyond
+    assert beyond - held == pytest.approx(1e-4, rel=1e-3)
+    assert abs(within - held) < 1e-12
