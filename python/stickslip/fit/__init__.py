@@ -206,11 +206,7 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
         }
         if at_bound:
             warnings.append(f"{e.name} = {v:.6g} was clipped into its bounds [{e.low:g}, {e.high:g}]")
-    residual_rms = {}
-    for ex, res in zip(spec.experiments, runs, strict=True):
-        for k, c in enumerate(ex.channels):
-            key = c.output if len(spec.experiments) == 1 else f"{ex.name}:{c.output}"
-            residual_rms[key] = float(np.sqrt(np.mean((res.values[:, k] - c.values) ** 2)))
+    residual_rms = _residual_rms(spec, runs)
     trusted = not warnings
     level = math.sqrt(gof["reduced_chi_square"]) if gof["reduced_chi_square"] > 0 else math.nan
     shooting = f"over a {problem.horizon:g} s horizon" if problem.horizon is not None else "as one run"
@@ -231,10 +227,7 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
         "parameters": params,
         "correlation": {"names": names, "matrix": correlation.tolist()},
         "cost": cost,
-        "goodness_of_fit": {
-            **{k: v for k, v in gof.items() if k != "channels"},
-            "channels": {c.name: {k: v for k, v in c.__dict__.items() if k != "name"} for c in gof["channels"]},
-        },
+        "goodness_of_fit": _goodness_json(gof),
         "rms_normalized_residual": float(np.sqrt(np.mean(r**2))),
         "residual_rms": residual_rms,
         "n_evaluations": evaluator.runs,
@@ -255,12 +248,7 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "segment_lengths_s": None,
             "diff_step": None,
             "sandwich_lag_windows": {},
-            "noise": {
-                name: {"sigma": c.sigma, "resolution": c.resolution, "resolution_detected": c.resolution_detected}
-                for name, c in zip(
-                    problem.channel_names(), [c for e in spec.experiments for c in e.channels], strict=True
-                )
-            },
+            "noise": _noise(problem, spec),
             "std_error_change_with_3x_step": None,
             "condition_number": None,
             "samples": len(r),
@@ -275,6 +263,33 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "runs": runs,
             "covariance": np.diag([p["std_error"] ** 2 for p in params.values()]),
         },
+    }
+
+
+def _residual_rms(spec, runs) -> dict:
+    """The rms of model − measured per channel ("experiment:output" with several experiments)."""
+    out = {}
+    for ex, res in zip(spec.experiments, runs, strict=True):
+        for k, c in enumerate(ex.channels):
+            key = c.output if len(spec.experiments) == 1 else f"{ex.name}:{c.output}"
+            out[key] = float(np.sqrt(np.mean((res.values[:, k] - c.values) ** 2)))
+    return out
+
+
+def _noise(problem, spec) -> dict:
+    """Each channel's noise model: its sigma and the encoder's count (given or detected)."""
+    channels = [c for e in spec.experiments for c in e.channels]
+    return {
+        name: {"sigma": c.sigma, "resolution": c.resolution, "resolution_detected": c.resolution_detected}
+        for name, c in zip(problem.channel_names(), channels, strict=True)
+    }
+
+
+def _goodness_json(gof: dict) -> dict:
+    """:func:`stickslip.fit.uncertainty.goodness_of_fit`'s result as fit.json holds it."""
+    return {
+        **{k: v for k, v in gof.items() if k != "channels"},
+        "channels": {c.name: {k: v for k, v in c.__dict__.items() if k != "name"} for c in gof["channels"]},
     }
 
 
@@ -521,12 +536,7 @@ def _summarize(
             f"differing in {', '.join(apart)}: the data do not single out one solution"
         )
     runs = problem.runs([z])[0]
-    residual_rms = {}
-    for ex, res in zip(spec.experiments, runs, strict=True):
-        for k, c in enumerate(ex.channels):
-            key = c.output if len(spec.experiments) == 1 else f"{ex.name}:{c.output}"
-            d = res.values[:, k] - c.values
-            residual_rms[key] = float(np.sqrt(np.mean(d**2)))
+    residual_rms = _residual_rms(spec, runs)
     m = len(r)
     failures = problem.failures
     trusted = not misfit and not similar
@@ -548,10 +558,7 @@ def _summarize(
         "parameters": params,
         "correlation": {"names": names, "matrix": np.round(unc.correlation, 12).tolist()},
         "cost": cost,
-        "goodness_of_fit": {
-            **{k: v for k, v in gof.items() if k != "channels"},
-            "channels": {c.name: {k: v for k, v in c.__dict__.items() if k != "name"} for c in gof["channels"]},
-        },
+        "goodness_of_fit": _goodness_json(gof),
         "rms_normalized_residual": float(np.sqrt(np.mean(r**2))),
         "residual_rms": residual_rms,
         "n_evaluations": evaluator.runs,
@@ -590,12 +597,7 @@ def _summarize(
             "segment_lengths_s": segment_lengths(problem, options["segment"]) if multiple else None,
             "diff_step": options["diff_step"],
             "sandwich_lag_windows": dict(zip(problem.channel_names(), unc.lags, strict=False)),
-            "noise": {
-                name: {"sigma": c.sigma, "resolution": c.resolution, "resolution_detected": c.resolution_detected}
-                for name, c in zip(
-                    problem.channel_names(), [c for e in spec.experiments for c in e.channels], strict=True
-                )
-            },
+            "noise": _noise(problem, spec),
             "std_error_change_with_3x_step": se_change,
             "condition_number": unc.condition,
             "samples": m,
