@@ -76,7 +76,7 @@ def fit(
     try:
         _probe(spec, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
-        problem = Problem(spec, evaluator, flexible)
+        problem = Problem(spec, evaluator)
         # Multiple shooting restarts each segment from the measured q, q' of every flexible and
         # motor joint (a rotor turned to carry its link's load: stickslip.fit.start).
         segments = problem.segments(spec.options["segment"])

@@ -114,11 +114,10 @@ class Problem:
     """Residuals of a fit for points z, in single shooting (``segment=None``) or in multiple
     shooting with segments of ``segment`` seconds."""
 
-    def __init__(self, spec, evaluator: Evaluator, flexible: list, error_tolerance: float | None = None):
+    def __init__(self, spec, evaluator: Evaluator, error_tolerance: float | None = None):
         self.spec = spec
         self.transform = Transform(spec.estimates)
         self.evaluator = evaluator
-        self.flexible = list(flexible)
         self.error_tolerance = spec.options["error_tolerance"] if error_tolerance is None else error_tolerance
         # The final cost: the whole run's simulation (None), or the prediction over a horizon
         # from each measured state ([options] horizon, s: multiple shooting to the end).

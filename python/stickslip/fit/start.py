@@ -58,7 +58,6 @@ class Segments:
     motors: list = field(default_factory=list)
     gear_force: np.ndarray | None = None
     gear_ratio: list = field(default_factory=list)
-    measured: list = field(default_factory=list)  # joints whose start came from their measured q
     how: dict = field(default_factory=dict)  # joint -> how it starts at the first segment, for the report
 
     def rotor(self, k: int, values) -> dict:
@@ -158,7 +157,7 @@ def start_states(experiment, starts, md, unzipdir=None, known: dict | None = Non
         tau, _ = inverse_dynamics(unzipdir, np.hstack([q, qd, qdd]), settings)
         force = tau[:, [i - 1 for i in motors]]
         ratios = [float(values.get(f"gear_ratio[{i}]", 1.0)) for i in motors]
-    return Segments(starts, list(joints), q[:, columns], qd[:, columns], list(motors), force, ratios, measured, how)
+    return Segments(starts, list(joints), q[:, columns], qd[:, columns], list(motors), force, ratios, how)
 
 
 def resting(values, k: int, tolerance: float, samples: int = REST_SAMPLES):
