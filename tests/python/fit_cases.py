@@ -20,7 +20,7 @@ from helpers import require_fmu
 
 TRUTH = {"mu_k[1]": 0.17, "mu_s[1]": 0.22, "mu_k[3]": 0.2, "k[3]": 8e5}
 # the FMU's start values of other parameters some tests estimate (the truth too)
-START = {"d_A[1]": 0.1, "d_B[1]": 0.1, "l_A[1]": 0.06, "m[3]": 8.0, "slider_a[3]": 0.2, "mu_s[3]": 0.2}
+START = {"d_A[1]": 0.1, "d_B[1]": 0.1, "l_A[1]": 0.06, "m[3]": 8.0, "slider_a[3]": 0.2, "mu_s[3]": 0.2, "b_v[3]": 0.0}
 BOUNDS = {
     "mu_k[1]": (0.05, 0.4),
     "mu_s[1]": (0.05, 0.5),

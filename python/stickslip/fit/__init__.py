@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import time
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,7 @@ import numpy as np
 
 from ..motion import motor_joints
 from .problem import Evaluator, Problem, payload_of
-from .solve import StartResult, jacobian, latin_hypercube, refine, run_starts, segment_lengths
+from .solve import StartResult, guarded_start, jacobian, latin_hypercube, refine, run_starts, segment_lengths
 from .spec import FitSpec, FitSpecError, load
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
@@ -42,6 +43,11 @@ SE_STEP_CHANGE = 0.10
 SHIFT_LIMIT = 0.3
 TIGHTENINGS = 2
 TOLERANCE_FLOOR = 1e-8
+# An answer is not a minimum when a point its profiles evaluated lies lower by more than
+# NOT_A_MINIMUM σ̂² in the cost ½Σr² (one standard error from a parabola's bottom costs ½σ̂²: this
+# is a fifth of that); the fit then goes on from that point, at most FROM_LOWER times.
+NOT_A_MINIMUM = 0.1
+FROM_LOWER = 2
 
 
 class FitError(RuntimeError):
@@ -124,9 +130,16 @@ def fit(
 
                 write(result, spec, Path(out))
             return result
+        dropped = []
         if idim_theta:
-            z = problem.transform.z([idim_theta.get(n, initial[n]) for n in initial])
-            starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), "equation-error"))
+            at = {n: idim_theta.get(n, initial[n]) for n in initial}
+            reason = _impossible(spec.estimates, at)
+            if reason is None:
+                z = problem.transform.z(list(at.values()))
+                starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), "equation-error"))
+            else:
+                dropped.append(StartResult(at, "equation-error", status="dropped", message=reason))
+                say(f"fit: start 'equation-error' dropped: {reason}")
         for k, z in enumerate(latin_hypercube(len(initial), spec.options["starts"] - 1, spec.options["seed"])):
             starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), f"latin hypercube {k + 1}"))
         threads = max(1, min(len(starts), _cores(client)))
@@ -140,12 +153,39 @@ def fit(
             )
         )
 
-        results = run_starts(problem, starts, multiple, spec.options, threads, say)
+        results = run_starts(problem, starts, multiple, spec.options, threads, say) + dropped
         finite = [s for s in results if math.isfinite(s.cost) and s.z is not None]
         if not finite:
-            raise FitError("no start reached a finite cost: " + "; ".join(s.message for s in results))
+            why = "no start reached a finite cost: " + "; ".join(f"{s.origin}: {s.message}" for s in results)
+            _give_up(spec, out, why, results, problem, notes, evaluator, t0)
         best = min(finite, key=lambda s: s.cost)
-        result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say)
+        moved = []
+        for attempt in range(FROM_LOWER + 1):
+            try:
+                result = _summarize(spec, problem, best, results, multiple, notes, evaluator, t0, say, moved)
+            except Exception as e:  # noqa: BLE001 -- what finished is written, with why the rest did not
+                why = f"the uncertainty of the best start failed: {type(e).__name__}: {' '.join(str(e).split())}"
+                _give_up(spec, out, why, results, problem, notes, evaluator, t0, best, traceback.format_exc())
+            lower = result["_internal"]["lower"]
+            if lower is None or attempt == FROM_LOWER:
+                break
+            # Not a minimum along a profile: single shooting goes on from the lower point, at the
+            # answer's error tolerance.
+            at = result["_internal"]["problem"]
+            origin = f"the lower point on a profile of {best.origin!r}"
+            say(
+                f"fit: the answer of start {best.origin!r} (cost {best.cost:.6g}) is not a minimum: "
+                f"going on from {origin} (cost {lower[0]:.6g})"
+            )
+            again = guarded_start(at, StartResult(at.transform.named(lower[1]), origin), False, spec.options, say)
+            results.append(again)
+            if not (math.isfinite(again.cost) and again.z is not None and again.cost < best.cost):
+                break
+            moved.append(
+                f"start {best.origin!r} ended at cost {best.cost:.6g}, which is not a minimum along its profiles; "
+                f"the fit went on from a lower point on them to cost {again.cost:.6g}"
+            )
+            best = again
         result["method"]["start"] = {e.name: _start_text(e, p) for e, p in zip(spec.experiments, payloads, strict=True)}
         result["method"]["derivatives"] = {e.name: _filter_text(e) for e in spec.experiments}
         result["_internal"]["payloads"] = payloads
@@ -162,6 +202,74 @@ def fit(
     return result
 
 
+def _impossible(estimates, theta: dict) -> str | None:
+    """Why θ cannot be a start (a value that is not a number, or outside its bounds), or None."""
+    for e in estimates:
+        v = theta[e.name]
+        if not math.isfinite(v):
+            return f"{e.name} = {v} is not a number"
+        if not e.low <= v <= e.high:
+            return f"{e.name} = {v:.6g} lies outside its bounds [{e.low:g}, {e.high:g}]"
+    return None
+
+
+def _give_up(spec, out, why: str, results: list, problem, notes, evaluator, t0, best=None, trace=None):
+    """Writes what finished (fit.json, report.md; no fitted.toml: there is no answer to replay)
+    into ``out`` and raises :class:`FitError` with ``why``: the starts, each with its cost or the
+    reason it ended without one, and the best start's parameters without standard errors."""
+    transform = problem.transform
+    record = {
+        "trusted": False,
+        "verdict": f"FAILED: {why}",
+        "error": why,
+        "parameters": (
+            {
+                n: {"value": v, "std_error": None, "initial": e.initial, "bounds": [e.low, e.high]}
+                for (n, v), e in zip(transform.named(transform.theta(best.z)).items(), spec.estimates, strict=True)
+            }
+            if best is not None
+            else {}
+        ),
+        "n_evaluations": evaluator.runs,
+        "wall_s": time.perf_counter() - t0,
+        "warnings": [f"the fit did not finish: {why}"],
+        "starts": [_start_json(s, transform) for s in results],
+        "method": {"equation_error_stage": notes},
+        "failed_runs": _failed_runs(problem.failures),
+    }
+    if out is not None:
+        from .report import write_failure
+
+        write_failure(record, spec, Path(out), trace)
+    raise FitError(why + (f" (what finished: {Path(out) / 'fit.json'})" if out is not None else ""))
+
+
+def _start_json(s, transform) -> dict:
+    return {
+        "origin": s.origin,
+        "initial": s.initial,
+        "cost": s.cost if math.isfinite(s.cost) else None,
+        "multiple_shooting_cost": s.ms_cost,
+        "cost_at_start": s.start_cost if math.isfinite(s.start_cost) else None,
+        "cost_after_continuation": s.continuation_cost,
+        "parameters": transform.named(transform.theta(s.z)) if s.z is not None else None,
+        "status": s.status,
+        "message": s.message,
+        "iterations": s.nfev,
+    }
+
+
+def _failed_runs(failures: list) -> dict:
+    """The runs the FMU refused or discarded, in an order that does not depend on which thread
+    or worker met them first."""
+    ordered = sorted(failures, key=lambda f: (f["experiment"], f["status"], f["message"]))
+    return {
+        "count": len(ordered),
+        "by_status": {st: sum(f["status"] == st for f in ordered) for st in sorted({f["status"] for f in ordered})},
+        "first": ordered[:5],
+    }
+
+
 def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list, evaluator, t0: float, say) -> dict:
     """The fit's result where ``[options] stage = "equation-error"``: the equation-error
     stage's estimates (:mod:`stickslip.fit.idim`: the torques' or slip equations' linear least
@@ -171,14 +279,18 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
     from .uncertainty import goodness_of_fit
 
     names = [e.name for e in spec.estimates]
-    missing = [n for n in names if n not in theta]
+    missing = [n for n in names if not math.isfinite(theta.get(n, math.nan))]
     if len(missing) == len(names):
         raise FitError(
             "stage = 'equation-error': the equation-error stage estimated none of the parameters: "
             + "; ".join(n for n in notes)
         )
-    values = np.array([theta.get(e.name, e.initial) for e in spec.estimates])
+    # What is reported is what the replay runs and fitted.toml holds: an estimate outside its
+    # physical bounds is taken at the bound it crossed, and says so.
+    raw = {e.name: theta[e.name] if e.name not in missing else e.initial for e in spec.estimates}
+    values = np.array([min(max(raw[e.name], e.low), e.high) for e in spec.estimates])
     z = problem.transform.z(values)
+    values = problem.transform.theta(z)
     runs = problem.runs([z])[0]
     r = problem.residual(runs)
     cost = 0.5 * float(r @ r)
@@ -204,8 +316,12 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "at_bound": at_bound,
             "scale": e.scale,
         }
-        if at_bound:
-            warnings.append(f"{e.name} = {v:.6g} was clipped into its bounds [{e.low:g}, {e.high:g}]")
+        if raw[e.name] != v:
+            warnings.append(
+                f"{e.name}: the equation-error estimate {raw[e.name]:.6g} lies outside its bounds [{e.low:g}, "
+                f"{e.high:g}]; reported, replayed and written to fitted.toml at {v:.6g}, where its standard error "
+                "does not describe it (a model error the least squares absorbed: docs/calibration.md)"
+            )
     residual_rms = _residual_rms(spec, runs)
     trusted = not warnings
     level = math.sqrt(gof["reduced_chi_square"]) if gof["reduced_chi_square"] > 0 else math.nan
@@ -256,7 +372,7 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "jacobian_notes": [],
         },
         "dropped_rows": {e.name: e.dropped_rows for e in spec.experiments if e.dropped_rows},
-        "failed_runs": {"count": len(problem.failures), "by_status": {}, "first": problem.failures[:5]},
+        "failed_runs": _failed_runs(problem.failures),
         "_internal": {
             "z": z,
             "theta": values,
@@ -409,6 +525,7 @@ def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -
             "error_tolerance": tol,
             "std_error_change_with_3x_step": opt.se_change,
             "shift_at_tenfold_tighter_se": shift,
+            "shift_at_tenfold_tighter": [float(x) for x in np.abs(step)],
         }
         record.append(entry)
         if not (opt.se_change > SE_STEP_CHANGE or shift > SHIFT_LIMIT):
@@ -431,10 +548,36 @@ def _fmu_tolerance(spec) -> float | None:
     return None
 
 
+def _numerical_part(tightening: list, std_error) -> np.ndarray:
+    """Per parameter, the FMU's numerical error of the estimate where it exceeds the statistical
+    standard error, else 0: the move of the estimate between the last two error tolerances
+    tried (a Gauss-Newton step at each, :func:`_numerically_converged`). The error at the
+    tighter tolerance is at most that move where halving it at least halves the error
+    (any convergent error control), so the move stands for it, as a standard uncertainty of
+    its own, independent of the noise: the reported standard error is their root sum of squares."""
+    out = np.zeros(len(std_error))
+    if not tightening:
+        return out
+    shift = np.asarray(tightening[-1]["shift_at_tenfold_tighter"], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        over = np.isfinite(std_error) & (shift > std_error)
+    out[over] = shift[over]
+    return out
+
+
 def _summarize(
-    spec, problem: Problem, best: StartResult, results: list, multiple: bool, notes: list, evaluator, t0: float, say
+    spec,
+    problem: Problem,
+    best: StartResult,
+    results: list,
+    multiple: bool,
+    notes: list,
+    evaluator,
+    t0: float,
+    say,
+    moved=(),
 ) -> dict:
-    from .profile import profiles
+    from .profile import Lowest, profiles
     from .uncertainty import LEVEL, goodness_of_fit, misfit_warnings
 
     # The Jacobian of the uncertainty takes the step single shooting ended with.
@@ -449,11 +592,14 @@ def _summarize(
         r, problem.blocks(), [(n, *c) for n, c in zip(problem.channel_names(), channels, strict=True)], len(z)
     )
     say(f"fit: best cost {cost:.6g}; profiles and goodness of fit ({evaluator.runs} FMU runs so far)")
-    profile = profiles(problem, transform.theta(z), cost, opt.J, unc, unc.scale) if options["loss"] == "linear" else {}
+    lowest = Lowest(cost)
+    linear = options["loss"] == "linear"
+    profile = profiles(problem, transform.theta(z), cost, opt.J, unc, unc.scale, lowest) if linear else {}
     theta = transform.theta(z)
     names = [e.name for e in spec.estimates]
-    warnings = []
+    warnings = list(moved)
     params = {}
+    numerical = _numerical_part(tightening, unc.std_error)
     for j, e in enumerate(spec.estimates):
         span = e.high - e.low
         at_bound = bool(min(theta[j] - e.low, e.high - theta[j]) <= 1e-6 * span)
@@ -461,9 +607,13 @@ def _summarize(
         se = float(unc.std_error[j])
         if prof is not None and math.isfinite(se):
             se = max(se, prof["std_error_profile"])
+        statistical = se
+        se = math.hypot(se, numerical[j])
         params[e.name] = {
             "value": float(theta[j]),
             "std_error": se,
+            "std_error_statistical": statistical,
+            "std_error_numerical": float(numerical[j]),
             "std_error_classical": float(unc.std_error_classical[j]),
             "std_error_sandwich": float(unc.std_error_sandwich[j]),
             "initial": e.initial,
@@ -494,7 +644,16 @@ def _summarize(
             "(column-scaled) is not determined by the data"
         )
     last = tightening[-1] if tightening else None
-    if last is not None and last.get("refitted"):
+    numerically_limited = [n for n, x in zip(names, numerical, strict=True) if x > 0]
+    if numerically_limited:
+        warnings.append(
+            f"the FMU's numerical error moves {', '.join(numerically_limited)} by more than its statistical standard "
+            f"error (the estimates moved by {last['shift_at_tenfold_tighter_se']:.2g} standard errors between "
+            f"error_tolerance {last['error_tolerance']:g} and {last['error_tolerance'] / 10:g}, the tightest tried): "
+            "that move is added to their standard errors (std_error_numerical); set [options] error_tolerance "
+            "lower to shrink it"
+        )
+    elif last is not None and last.get("refitted"):
         warnings.append(
             f"the FMU's numerical error still moved the estimates at error_tolerance {last['error_tolerance'] / 10:g} "
             f"(the last check: {last['shift_at_tenfold_tighter_se']:.2g} standard errors); the answer is the fit at "
@@ -535,15 +694,32 @@ def _summarize(
             f"start {s.origin!r} ended in a different minimum of similar cost ({s.cost:.6g} vs {best.cost:.6g}), "
             f"differing in {', '.join(apart)}: the data do not single out one solution"
         )
+    lower = None
+    if lowest.theta is not None and lowest.cost < cost - NOT_A_MINIMUM * unc.scale:
+        lower = (lowest.cost, lowest.theta)
+        warnings.append(
+            f"the answer is not a minimum of its own cost: a point its profiles evaluated has cost {lowest.cost:.6g} "
+            f"against {cost:.6g} ("
+            + ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, lowest.theta, strict=True))
+            + ")"
+        )
     runs = problem.runs([z])[0]
     residual_rms = _residual_rms(spec, runs)
     m = len(r)
     failures = problem.failures
-    trusted = not misfit and not similar
+    trusted = not misfit and not similar and not numerically_limited and lower is None
     if misfit:
         verdict = "NOT TRUSTED: " + misfit[0].split(":")[0] + " — the model does not follow the data (see the warnings)"
     elif similar:
         verdict = "NOT UNIQUE: another start ended in a different minimum the data cannot reject"
+    elif lower is not None:
+        verdict = "NOT A MINIMUM: a point along a profile has a lower cost (see the warnings)"
+    elif numerically_limited:
+        verdict = (
+            "NOT TRUSTED: the FMU's numerical error, not the data, limits "
+            + ", ".join(numerically_limited)
+            + " (their standard errors include it)"
+        )
     elif gof["p_value"] >= LEVEL:
         verdict = f"the residuals are what the noise model says (chi-square p = {gof['p_value']:.2g})"
     else:
@@ -565,20 +741,7 @@ def _summarize(
         "wall_s": time.perf_counter() - t0,
         "converged": best.status == "converged",
         "warnings": warnings,
-        "starts": [
-            {
-                "origin": s.origin,
-                "initial": s.initial,
-                "cost": s.cost if math.isfinite(s.cost) else None,
-                "multiple_shooting_cost": s.ms_cost,
-                "cost_at_start": s.start_cost if math.isfinite(s.start_cost) else None,
-                "cost_after_continuation": s.continuation_cost,
-                "parameters": transform.named(transform.theta(s.z)) if s.z is not None else None,
-                "status": s.status,
-                "iterations": s.nfev,
-            }
-            for s in results
-        ],
+        "starts": [_start_json(s, transform) for s in results],
         "method": {
             "shooting": (
                 f"multiple, then over a {problem.horizon:g} s horizon"
@@ -605,12 +768,16 @@ def _summarize(
             "jacobian_notes": jac_notes,
         },
         "dropped_rows": {e.name: e.dropped_rows for e in spec.experiments if e.dropped_rows},
-        "failed_runs": {
-            "count": len(failures),
-            "by_status": {st: sum(1 for f in failures if f["status"] == st) for st in {f["status"] for f in failures}},
-            "first": failures[:5],
+        "failed_runs": _failed_runs(failures),
+        "_internal": {
+            "z": z,
+            "theta": theta,
+            "runs": runs,
+            # the numerical part is independent of the statistical one: added on the diagonal
+            "covariance": unc.covariance + np.diag(numerical**2),
+            "lower": lower,
+            "problem": problem,
         },
-        "_internal": {"z": z, "theta": theta, "runs": runs, "covariance": unc.covariance},
     }
 
 

@@ -215,10 +215,13 @@ class Problem:
 
     def cost(self, z) -> float:
         """The final cost ½Σr² at z (single shooting, or over the horizon; inf where a run failed)."""
-        runs = self.runs([z])[0]
-        if Problem.failed(runs):
+        return self.cost_of(self.runs([z])[0])
+
+    def cost_of(self, results: list) -> float:
+        """½Σr² of one point's RunResults (inf where a run failed)."""
+        if Problem.failed(results):
             return float("inf")
-        r = self.residual(runs)
+        r = self.residual(results)
         return 0.5 * float(r @ r)
 
     @staticmethod

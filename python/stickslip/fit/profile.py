@@ -31,16 +31,30 @@ BISECTIONS = 4
 MAX_DOUBLINGS = 5
 
 
-def _evaluate(problem: Problem, points: list) -> list:
+class Lowest:
+    """The lowest cost met among the points a profile evaluates, and where: a point below the
+    optimum's cost means the optimum is not a minimum along that profile."""
+
+    def __init__(self, cost: float):
+        self.cost, self.theta = cost, None
+
+    def see(self, cost: float, theta) -> None:
+        if cost < self.cost:
+            self.cost, self.theta = cost, np.array(theta, dtype=np.float64)
+
+
+def _evaluate(problem: Problem, points: list, lowest: Lowest | None = None) -> list:
     """(cost, residual) of single shooting at each θ (inf where a run failed)."""
     zs = [problem.transform.z(theta) for theta in points]
     out = []
-    for runs in problem.runs(zs):
+    for theta, runs in zip(points, problem.runs(zs), strict=True):
         if Problem.failed(runs):
             out.append((math.inf, None))
         else:
             r = problem.residual(runs)
             out.append((0.5 * float(r @ r), r))
+            if lowest is not None:
+                lowest.see(out[-1][0], theta)
     return out
 
 
@@ -49,7 +63,7 @@ def _project(problem: Problem, theta) -> np.ndarray:
     return problem.transform.theta(problem.transform.z(theta))
 
 
-def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float) -> dict:
+def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float, lowest: Lowest | None = None) -> dict:
     """{j: actual/parabola cost ratio at θ̂ ± 2 SE along the profile path (the smaller of the two)}."""
     p = len(theta)
     points, index = [], []
@@ -61,13 +75,15 @@ def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float) 
             points.append(_project(problem, theta + side * 2.0 * se[j] * path))
             index.append(j)
     ratios = {}
-    for j, (cost, _) in zip(index, _evaluate(problem, points), strict=True):
+    for j, (cost, _) in zip(index, _evaluate(problem, points, lowest), strict=True):
         ratio = (cost - cost0) / (2.0 * scale)  # the parabola: ½ (2 SE)²/SE² σ̂²
         ratios[j] = min(ratios.get(j, math.inf), ratio)
     return ratios
 
 
-def profile_interval(problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float) -> dict:
+def profile_interval(
+    problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float, lowest: Lowest | None = None
+) -> dict:
     """The 95 % profile interval of θ_j: walk each side in doubling steps of one SE until
     the profile cost passes ``threshold`` above ``cost0`` (or a bound stops it), then bisect."""
     est = problem.spec.estimates[j]
@@ -80,7 +96,7 @@ def profile_interval(problem: Problem, theta, cost0: float, J, C, j: int, se_j: 
     def profile_cost(delta: float) -> float:
         nonlocal runs
         base = _project(problem, theta + delta * path)
-        ((cost, r),) = _evaluate(problem, [base])
+        ((cost, r),) = _evaluate(problem, [base], lowest)
         runs += 1
         if r is None:
             return math.inf
@@ -88,7 +104,7 @@ def profile_interval(problem: Problem, theta, cost0: float, J, C, j: int, se_j: 
         step[others] = -lstsq @ r
         moved = _project(problem, base + step)
         moved[j] = base[j]
-        ((cost2, _),) = _evaluate(problem, [moved])
+        ((cost2, _),) = _evaluate(problem, [moved], lowest)
         runs += 1
         return min(cost, cost2)
 
@@ -126,13 +142,14 @@ def profile_interval(problem: Problem, theta, cost0: float, J, C, j: int, se_j: 
     }
 
 
-def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float) -> dict:
-    """The profile of every parameter that is a μ_s or whose cost is not quadratic."""
+def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest: Lowest | None = None) -> dict:
+    """The profile of every parameter that is a μ_s or whose cost is not quadratic; ``lowest``
+    receives the lowest cost met on the way (:class:`Lowest`)."""
     from scipy.stats import chi2
 
     names = [e.name for e in problem.spec.estimates]
     C = np.linalg.pinv(J.T @ J)
-    ratios = quadratic_check(problem, theta, cost0, C, unc.std_error_classical, scale)
+    ratios = quadratic_check(problem, theta, cost0, C, unc.std_error_classical, scale, lowest)
     out = {}
     for j, name in enumerate(names):
         ratio = ratios.get(j, math.nan)
@@ -143,7 +160,7 @@ def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float) -> dic
             continue
         inflation = max(1.0, (unc.std_error_sandwich[j] / unc.std_error_classical[j]) ** 2)
         threshold = 0.5 * float(chi2.ppf(0.95, 1)) * scale * inflation
-        entry = profile_interval(problem, theta, cost0, J, C, j, float(unc.std_error[j]), threshold)
+        entry = profile_interval(problem, theta, cost0, J, C, j, float(unc.std_error[j]), threshold, lowest)
         entry["cost_ratio_at_2se"] = float(ratio) if math.isfinite(ratio) else None
         entry["quadratic"] = bool(quadratic)
         out[name] = entry

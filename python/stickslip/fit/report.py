@@ -33,6 +33,48 @@ def write(result: dict, spec, out: Path) -> None:
         raise
 
 
+def write_failure(record: dict, spec, out: Path, trace: str | None = None) -> None:
+    """A fit that did not finish: fit.json (``record``: the verdict FAILED, why, every start with
+    its cost or the reason it has none) and report.md, with the traceback of an unexpected failure
+    in error.log; no fitted.toml and no figures, since there is no answer to replay."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        (tmp / "fit.json").write_text(json.dumps(_finite(record), indent=2, allow_nan=False, default=_jsonable) + "\n")
+        lines = [
+            "# Fit report",
+            "",
+            f"FMU `{spec.fmu.name}`, {len(spec.experiments)} experiment(s); {record['n_evaluations']} FMU runs in "
+            f"{record['wall_s']:.1f} s.",
+            "",
+            f"**Verdict: {record['verdict']}.**",
+            "",
+            "## Starts",
+            "",
+            "| start | cost at start | cost | status | why it ended so |",
+            "|---|---|---|---|---|",
+        ]
+        for st in record["starts"]:
+            cost = f"{st['cost']:.6g}" if st["cost"] is not None else "–"
+            at = f"{st['cost_at_start']:.6g}" if st["cost_at_start"] is not None else "–"
+            lines.append(f"| {st['origin']} | {at} | {cost} | {st['status']} | {st['message'] or '–'} |")
+        if record["parameters"]:
+            lines += ["", "## The best start's parameters (no standard errors: its uncertainty failed)", ""]
+            lines += [f"- `{n}` = {p['value']:.8g}" for n, p in record["parameters"].items()]
+        lines += ["", "## Method", ""] + [f"- {note}" for note in record["method"]["equation_error_stage"]]
+        if trace:
+            (tmp / "error.log").write_text(trace)
+            lines += ["", "The traceback is in error.log; please report it with the SPEC."]
+        (tmp / "report.md").write_text("\n".join(lines) + "\n")
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
 def _finite(x):
     """NaN and infinities (a standard error of a parameter the data do not determine) as null."""
     if isinstance(x, dict):

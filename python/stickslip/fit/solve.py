@@ -185,7 +185,15 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     t0 = time.perf_counter()
     z0 = problem.transform.z(list(start.initial.values()))
     z, nfev = z0, 0
-    start.start_cost = problem.cost(z0)
+    at_start = problem.runs([z0])[0]
+    refused = [r for r in at_start if r.status == "refused"]
+    if refused:
+        # Not a point of the model: the optimizer would only walk the penalty's plateau.
+        start.status = "dropped"
+        start.message = f"the FMU refuses its parameters: {' '.join(refused[0].message.split())}"
+        say(f"fit: start {start.origin!r} dropped: {start.message}")
+        return start
+    start.start_cost = problem.cost_of(at_start)
     if multiple:
         for length in segment_lengths(problem, options["segment"]):
             res, hist = local_fit(problem, z, length, options)
@@ -216,12 +224,25 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     return start
 
 
+def guarded_start(problem: Problem, start: StartResult, multiple: bool, options: dict, say=None) -> StartResult:
+    """:func:`run_start`, whose failure (an exception anywhere inside it) ends this start only:
+    it comes back ``failed`` with the reason, without a cost, and the other starts go on."""
+    try:
+        return run_start(problem, start, multiple, options, say)
+    except Exception as e:  # noqa: BLE001 -- one start's failure must not end the fit
+        start.z, start.cost, start.status = None, math.inf, "failed"
+        start.message = f"{type(e).__name__}: {' '.join(str(e).split())}"
+        (say or (lambda line: None))(f"fit: start {start.origin!r} failed: {start.message}")
+        return start
+
+
 def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, threads: int, say=None) -> list:
-    """Every start (in ``threads`` threads sharing the evaluator), results in the same order."""
+    """Every start (in ``threads`` threads sharing the evaluator), results in the same order;
+    a start that fails is returned ``failed`` with its reason (:func:`guarded_start`)."""
     if threads <= 1 or len(starts) == 1:
-        return [run_start(problem, s, multiple, options, say) for s in starts]
+        return [guarded_start(problem, s, multiple, options, say) for s in starts]
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(lambda s: run_start(problem, s, multiple, options, say), starts))
+        return list(pool.map(lambda s: guarded_start(problem, s, multiple, options, say), starts))
 
 
 def latin_hypercube(p: int, n: int, seed: int) -> np.ndarray:
