@@ -5,12 +5,15 @@
 #   bash scripts/build_fmu.sh [--platforms linux64,win64,darwin64] [package_fmu args...]
 #
 #   --platforms LIST  the FMU binaries to build, comma-separated, of linux64,
-#                     win64, darwin64; default `linux64,win64,darwin64` (all
-#                     three), or `linux64,win64` with STICKSLIP_DARWIN64=0 (a
-#                     developer's opt-out of the macOS cross-build and its
-#                     toolchain, the PyPI package ziglang; CI builds darwin64).
-#                     `--platforms linux64` skips the cross-builds while
-#                     iterating.
+#                     win64, darwin64, or `all` (the three); default
+#                     $STICKSLIP_PLATFORMS, else `linux64`: the machine it runs
+#                     on. The cross-builds cost their toolchains on a fresh
+#                     machine (win64: Debian's rustc-web, mingw-w64 and wine,
+#                     about 350 MB through apt; darwin64: LLVM and the PyPI
+#                     package ziglang) and about 3 minutes each of compiling
+#                     (docs/platforms.md). scripts/test.sh builds all three;
+#                     STICKSLIP_DARWIN64=0 takes darwin64 out of any list (a
+#                     developer's opt-out; CI builds it).
 #
 #   1. linux64: cargo build --release -p stick_slip_manipulator
 #      -p stick_slip_manipulator_fmi3 --lib --bin package_fmu (the FMI 3.0
@@ -50,8 +53,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
 
-platforms="linux64,win64,darwin64"
-if [ "${STICKSLIP_DARWIN64:-1}" = 0 ]; then platforms="linux64,win64"; fi
+platforms="${STICKSLIP_PLATFORMS:-linux64}"
 pass=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -61,6 +63,8 @@ while [ $# -gt 0 ]; do
         *) pass+=("$1"); shift ;;
     esac
 done
+[ "$platforms" = all ] && platforms="linux64,win64,darwin64"
+if [ "${STICKSLIP_DARWIN64:-1}" = 0 ]; then platforms=$(printf '%s' "$platforms" | sed 's/,darwin64//; s/darwin64,//'); fi
 linux64=0 win64=0 darwin64=0
 IFS=, read -r -a wanted <<<"$platforms"
 for p in "${wanted[@]}"; do
@@ -76,8 +80,9 @@ if [ "$linux64" -eq 0 ]; then
     echo "build_fmu.sh: --platforms must include linux64" >&2
     exit 2
 fi
-# env.sh installs the darwin64 toolchain only when darwin64 is built.
+# env.sh installs each cross toolchain only when its platform is built.
 if [ "$darwin64" -eq 1 ]; then export STICKSLIP_DARWIN64=1; else export STICKSLIP_DARWIN64=0; fi
+[ "$win64" -eq 1 ] && export STICKSLIP_WIN64=1
 env_start=$SECONDS
 # shellcheck source=scripts/env.sh
 source scripts/env.sh

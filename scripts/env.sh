@@ -16,9 +16,11 @@
 #   * the package `stickslip` of pyproject.toml (python/stickslip, command
 #     `stickslip`) is installed into the venv in editable mode; re-installed
 #     only when pyproject.toml changes (stamp kept in the venv).
-#   * the Debian packages of the win64 cross-build and its wine tests are
-#     installed (apt-get when missing): rustc-web, cargo-web, rust-web-src,
-#     gcc-mingw-w64-x86-64, wine64, wine (see _stickslip_ensure_win64_packages).
+#   * only with STICKSLIP_WIN64=1 (scripts/build_fmu.sh sets it when it builds
+#     win64; scripts/test.sh's full run sets it): the Debian packages of the
+#     win64 cross-build and its wine tests (apt-get when missing): rustc-web,
+#     cargo-web, rust-web-src, gcc-mingw-w64-x86-64, wine64, wine (see
+#     _stickslip_ensure_win64_packages; about 350 MB to download).
 #   * only with STICKSLIP_DARWIN64=1 (scripts/build_fmu.sh sets it when it
 #     builds darwin64, which it does by default): Debian's llvm-14 and the PyPI
 #     package `ziglang` in a venv of its own (see _stickslip_ensure_darwin64).
@@ -88,6 +90,7 @@ _stickslip_ensure_win64_packages() {
     #   gcc-mingw-w64-x86-64   the Windows linker and C runtime (mingw-w64)
     #   wine64, wine           runs the Windows test programs (scripts/test.sh)
     local pkgs="rustc-web cargo-web rust-web-src gcc-mingw-w64-x86-64 wine64 wine" missing
+    [ "${STICKSLIP_WIN64:-0}" = 1 ] || return 0
     missing=$(dpkg-query -W -f='${Status} ${Package}\n' $pkgs 2>/dev/null |
         awk '$3 == "installed" {ok[$4] = 1} END {n = split("'"$pkgs"'", p, " "); for (i = 1; i <= n; i++) if (!ok[p[i]]) printf "%s ", p[i]}')
     [ -z "$missing" ] && return 0

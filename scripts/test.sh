@@ -10,15 +10,16 @@
 #      fmi3), ruff check, ruff format --check
 #   1. cargo test --release --all-targets --no-fail-fast  (release: physics tests are heavy)
 #   2. cargo test --release --doc           (doc tests; only if there is a lib target)
-#   3. FMU packaging hook: scripts/build_fmu.sh, if it exists: linux64, win64
+#   3. FMU packaging hook: scripts/build_fmu.sh --platforms all: linux64, win64
 #      and darwin64 (STICKSLIP_DARWIN64=0 leaves darwin64 out, for developers
 #      only: in CI, CI=true, tests/python/test_darwin64.py then fails; see
 #      docs/platforms.md)
 #   3b. cargo test --test engine fmi3_crate on the FMI 3.0 FMU of stage 3
 #   4. win64 tests (tests/win64): the FMU's Windows DLL under wine against the
 #      linux64 .so (scripts/win64.sh)
-#   5. pytest tests/python                  (if it holds test files; `slow` tests are
-#                                            deselected, see tests/python/conftest.py;
+#   5. pytest tests/python --runslow        (if it holds test files; every test, the `slow`
+#                                            ones included; --quick deselects `slow` and
+#                                            `full`, see tests/python/conftest.py;
 #                                            exit 5 "no tests collected" counts as ok)
 #
 # Before stage 0, a fresh clone's target dir gets the dependencies an earlier full run
@@ -32,7 +33,7 @@
 # (a stage that failed without reporting a failed test, e.g. a compile error,
 # adds 1 to "failed").
 #
-# Extra arguments are passed to pytest, e.g. `scripts/test.sh --runslow`.
+# Extra arguments are passed to pytest, e.g. `scripts/test.sh -k fit`.
 #
 # --quick: the inner loop of a change to the engine or the Python package
 # (README, "Tests"): stages 0-2, the linux64 FMU only (no cross builds, no
@@ -59,6 +60,11 @@ fi
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
+if [ "$QUICK" -eq 0 ]; then
+    # The full run builds and tests every platform (env.sh installs the win64 toolchain and
+    # wine for it; build_fmu.sh the darwin64 one).
+    export STICKSLIP_PLATFORMS=all STICKSLIP_WIN64=1
+fi
 # shellcheck source=scripts/env.sh
 source scripts/env.sh
 
@@ -244,7 +250,9 @@ if [ -d tests/python ] && [ -n "$(find tests/python \( -name 'test_*.py' -o -nam
     workers="${STICKSLIP_PYTEST_WORKERS:-2}"
     pytest_args=(-ra --durations=15)
     [ "$workers" != 0 ] && pytest_args+=(-n "$workers" --dist loadfile)
-    [ "$QUICK" -eq 1 ] && pytest_args+=(-m "not full")
+    # The full run includes the slow tests (the fit's statistical checks, the study at full
+    # resolution, the examples' commands): a test no command runs rots. --quick leaves them out.
+    if [ "$QUICK" -eq 1 ]; then pytest_args+=(-m "not full"); else pytest_args+=(--runslow); fi
     python -m pytest tests/python "${pytest_args[@]}" --junitxml="$LOGDIR/pytest.xml" "$@" 2>&1 | tee "$LOGDIR/pytest.log"
     rc=${PIPESTATUS[0]}
     set -e
