@@ -3,8 +3,7 @@
 # it, and run the examples, the study and the calibrations into results/. No test runs here
 # (scripts/test.sh runs every test).
 #
-#   1. cargo build --release
-#   2. scripts/build_fmu.sh: the FMI 2.0 and FMI 3.0 FMUs for this machine (linux64);
+#   1-2. scripts/build_fmu.sh (its cargo builds): the FMI 2.0 and FMI 3.0 FMUs for this machine (linux64);
 #      STICKSLIP_PLATFORMS=all adds the win64 and darwin64 binaries (their toolchains,
 #      about 350 MB of apt packages and a PyPI package, and about 3 minutes of compiling
 #      each on a fresh machine: docs/platforms.md)
@@ -48,9 +47,6 @@ banner() {
     printf '\n===== %s =====\n' "$*"
 }
 
-banner "cargo build --release"
-cargo build --release
-
 # The FMUs for this machine (STICKSLIP_PLATFORMS=all: every platform, see the header).
 if [ -f scripts/build_fmu.sh ]; then
     banner "bash scripts/build_fmu.sh (platforms: ${STICKSLIP_PLATFORMS:-linux64})"
@@ -78,7 +74,7 @@ urdf_failed() {
     exit 1
 }
 urdf_arm() {  # name: models/urdf/<name>/<name>.toml driven by examples/motions/<name>.toml
-    local name=$1 started=$SECONDS
+    local name=$1
     local model="models/urdf/$name/$name.toml" motion="examples/motions/$name.toml"
     local fmu="$ROOT/target/fmu/$name.fmu" out="$RESULTS_DIR/$name"
     local csv="$out/$name.csv"
@@ -100,7 +96,6 @@ urdf_arm() {  # name: models/urdf/<name>/<name>.toml driven by examples/motions/
     [ -s "$csv" ] || urdf_failed "$name" "stickslip simulate (wrote no $csv)" 1
     python scripts/plot_urdf_arm.py "$csv" "$out" --fmu "$fmu" --name "$name" --loads 1,2 \
         --summary "$out/summary.json" || urdf_failed "$name" "plot_urdf_arm.py" $?
-    echo "main.sh: URDF arm $name: $((SECONDS - started)) s"
 }
 URDF_ARMS="${URDF_ARMS-kuka_iiwa xarm6}"
 urdf_started=$SECONDS
@@ -122,7 +117,6 @@ axis_control_failed() {
     exit 1
 }
 banner "axis-control example (examples/axis_control.py, docs/control.md) -> $RESULTS_DIR/axis_control"
-axis_started=$SECONDS
 axis_fmu="$ROOT/target/fmu/reference_rrpr_motor.fmu"
 bash scripts/build_fmu.sh --model models/reference_rrpr_motor.toml --out "$axis_fmu" \
     || axis_control_failed "building its FMU (models/reference_rrpr_motor.toml)" $?
@@ -131,7 +125,6 @@ python examples/axis_control.py --fmu "$axis_fmu" --out "$RESULTS_DIR/axis_contr
     || axis_control_failed "examples/axis_control.py" $?
 [ -s "$RESULTS_DIR/axis_control/summary.json" ] \
     || axis_control_failed "examples/axis_control.py (wrote no summary.json)" 1
-echo "main.sh: axis-control example: $((SECONDS - axis_started)) s"
 
 banner "stickslip study: the source study's five cases through the FMU -> $RESULTS_DIR/study"
 stickslip study --out "$RESULTS_DIR/study"
