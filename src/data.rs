@@ -63,6 +63,10 @@ pub struct Data {
     pub composite: Vec<Mat6>,
     /// Joint-space mass matrix M(q) (study's D_si, eq. 3.9).
     pub mass_matrix: MatN,
+    /// Joint-torque regressor Y(q, q̇, q̈), n × 10n: τ = Y·π with π the links'
+    /// standard inertial parameters
+    /// ([`joint_torque_regressor`](crate::algorithms::regressor::joint_torque_regressor)).
+    pub regressor: MatN,
     /// Joint force at the reaction reference point, in the joint frame, N.
     pub reaction_force: Vec<Vec3>,
     /// Joint moment about the reaction reference point, in the joint frame, N·m.
@@ -105,6 +109,7 @@ impl Data {
             tau: vec![0.0; n],
             composite: vec![Mat6::zeros(); n],
             mass_matrix: MatN::zeros(n, n),
+            regressor: MatN::zeros(n, 10 * n),
             reaction_force: vec![Vec3::zeros(); n],
             reaction_moment: vec![Vec3::zeros(); n],
         }

@@ -16,6 +16,9 @@ pub type Vec4 = nalgebra::Vector4<f64>;
 pub type Vec6 = nalgebra::Vector6<f64>;
 /// A 6×6 spatial inertia.
 pub type Mat6 = nalgebra::Matrix6<f64>;
+/// A 3×10 matrix: a link's force or moment as a map of its ten standard
+/// inertial parameters (the joint-torque regressor's body regressor).
+pub type Mat3x10 = nalgebra::SMatrix<f64, 3, 10>;
 /// A joint-space vector of dimension n.
 pub type VecN = nalgebra::DVector<f64>;
 /// A joint-space matrix of dimension n×n.

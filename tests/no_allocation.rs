@@ -4,12 +4,14 @@
 //! process. Once a simulator is initialized, advancing it over intervals
 //! that include stick–slip transitions, phase decisions and event location
 //! allocates nothing; restoring a state allocates nothing. A simulator of
-//! the reference manipulator owns less than 64 KiB of heap.
+//! the reference manipulator owns less than 64 KiB of heap. The
+//! joint-torque regressor, in a `Data` built beforehand, allocates nothing.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use stick_slip_manipulator::algorithms::regressor::joint_torque_regressor;
 use stick_slip_manipulator::motion::reference_inputs;
-use stick_slip_manipulator::{DriveInputs, Model, Simulator};
+use stick_slip_manipulator::{Data, DriveInputs, Model, Simulator};
 
 struct Counting;
 
@@ -62,4 +64,11 @@ fn stepping_allocates_nothing_and_a_simulator_is_small() {
     let allocations = ALLOCATIONS.load(Ordering::SeqCst) - start;
     assert!(sim.transitions().0.len() >= 2, "the window includes transitions: {:?}", sim.transitions());
     assert_eq!(allocations, 0, "stepping allocated {allocations} times");
+
+    let model = Model::reference_rrpr();
+    let mut data = Data::new(&model);
+    let start = ALLOCATIONS.load(Ordering::SeqCst);
+    joint_torque_regressor(&model, &mut data, &[0.1, -0.2, 0.3, 0.4], &[1.0, -0.5, 0.2, 2.0], &[5.0, 3.0, -1.0, 8.0]);
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - start;
+    assert_eq!(allocations, 0, "the regressor allocated {allocations} times");
 }

@@ -61,22 +61,14 @@ pub fn inverse_dynamics_rows(
     lever_load: &mut [f64],
 ) -> Result<(), String> {
     let n = model.nq();
-    if states.len() % (3 * n) != 0 {
-        return Err(format!("{} state values are not rows of 3n = {} (q, qd, qdd of {n} joints)", states.len(), 3 * n));
-    }
-    let rows = states.len() / (3 * n);
+    let rows = state_rows(n, states)?;
     for (what, len) in [("tau", tau.len()), ("lever_load", lever_load.len())] {
         if len != rows * n {
             return Err(format!("`{what}` has {len} values, {rows} rows of {n} joints need {}", rows * n));
         }
     }
     for (r, state) in states.chunks_exact(3 * n).enumerate() {
-        if let Some(k) = state.iter().position(|x| !x.is_finite()) {
-            let name = ["q", "qd", "qdd"][k / n];
-            return Err(format!("row {}: {name}[{}] = {} is not finite", r + 1, k % n + 1, state[k]));
-        }
-        let (q, rates) = state.split_at(n);
-        let (qd, qdd) = rates.split_at(n);
+        let (q, qd, qdd) = state_row(n, r, state)?;
         inverse_dynamics(model, data, q, qd, qdd);
         tau[r * n..(r + 1) * n].copy_from_slice(&data.tau);
         for (i, load) in lever_load[r * n..(r + 1) * n].iter_mut().enumerate() {
@@ -84,4 +76,28 @@ pub fn inverse_dynamics_rows(
         }
     }
     Ok(())
+}
+
+/// The number of rows of `states`, row-major rows × [q(n), q̇(n), q̈(n)], or
+/// why its length is not a whole number of them.
+pub fn state_rows(n: usize, states: &[f64]) -> Result<usize, String> {
+    if states.len() % (3 * n) != 0 {
+        return Err(format!("{} state values are not rows of 3n = {} (q, qd, qdd of {n} joints)", states.len(), 3 * n));
+    }
+    Ok(states.len() / (3 * n))
+}
+
+/// A state's q, q̇ and q̈, each of length n.
+pub type StateRow<'a> = (&'a [f64], &'a [f64], &'a [f64]);
+
+/// (q, q̇, q̈) of row `r` (0-based) of the states, `state` its 3n values, or
+/// the first of them that is not finite, named with its row (1-based).
+pub fn state_row(n: usize, r: usize, state: &[f64]) -> Result<StateRow<'_>, String> {
+    if let Some(k) = state.iter().position(|x| !x.is_finite()) {
+        let name = ["q", "qd", "qdd"][k / n];
+        return Err(format!("row {}: {name}[{}] = {} is not finite", r + 1, k % n + 1, state[k]));
+    }
+    let (q, rates) = state.split_at(n);
+    let (qd, qdd) = rates.split_at(n);
+    Ok((q, qd, qdd))
 }

@@ -7,4 +7,5 @@ pub mod inverse_dynamics;
 pub mod kinematics;
 pub mod lagrange;
 pub mod lu;
+pub mod regressor;
 pub mod rnea;
