@@ -2,7 +2,7 @@
 //! wrappers every exported function body runs in. A panic never crosses into
 //! C (since Rust 1.81 it would abort the master): in an FMI function it
 //! becomes fmi2Error and puts the instance in the error state
-//! ([`with_instance`]); in the one function beyond FMI, which has no
+//! ([`with_instance`]); in the functions beyond FMI, which have no
 //! instance, an error status with the panic's message ([`catch`]).
 
 use super::instance::Instance;
@@ -230,7 +230,7 @@ pub(crate) unsafe fn text<'a>(p: *const c_char, what: &str) -> Result<&'a str, F
 }
 
 /// Runs `body`, an exported function that has no instance (the library's
-/// function beyond FMI 2.0): a panic becomes an error with its message.
+/// functions beyond FMI 2.0): a panic becomes an error with its message.
 pub(crate) fn catch(body: impl FnOnce() -> Result<(), Fault>) -> Result<(), Fault> {
     catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|payload| {
         Err(Fault::error(format!("internal error (please report): {}", panic_message(payload.as_ref()))))

@@ -1,9 +1,11 @@
 //! The 34 exported functions of FMI 2.0 (common + co-simulation). Each one
 //! names the life-cycle states that allow it and hands checked arguments to
-//! [`Instance`]. Beside them one function beyond FMI, which an FMI master
+//! [`Instance`]. Beside them two functions beyond FMI, which an FMI master
 //! never calls: [`stickslip_inverse_dynamics`], the engine's inverse
-//! dynamics for the fit's equation-error stage; nothing else is exported
-//! from the library.
+//! dynamics for the fit's equation-error stage, and
+//! [`stickslip_joint_torque_regressor`], its joint-torque regressor and the
+//! model's standard inertial parameters; nothing else is exported from the
+//! library.
 //!
 //! Beyond FMI 2.0, which leaves the slave's behaviour there open,
 //! fmi2DoStep, fmi2SetReal, fmi2SetBoolean and fmi2SetRealInputDerivatives
@@ -25,6 +27,7 @@ use super::logger::{Category, Logger};
 use super::status::{Fault, Status};
 use super::uri::resource_path;
 use crate::algorithms::inverse_dynamics::{inverse_dynamics_rows, with_settings};
+use crate::algorithms::regressor::{joint_torque_regressor_rows, standard_parameters, LINK_PARAMETERS};
 use crate::model::{Model, ModelSource};
 use crate::Data;
 use fmi_sys::fmi2::*;
@@ -74,8 +77,8 @@ const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
 const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
 
 /// The names of the exported functions (the library's whole symbol table):
-/// the 34 of FMI 2.0, then the one beyond it.
-pub const EXPORTED_FUNCTIONS: [&str; 35] = [
+/// the 34 of FMI 2.0, then the two beyond it.
+pub const EXPORTED_FUNCTIONS: [&str; 36] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
     "fmi2SetDebugLogging",
@@ -111,6 +114,7 @@ pub const EXPORTED_FUNCTIONS: [&str; 35] = [
     "fmi2GetBooleanStatus",
     "fmi2GetStringStatus",
     "stickslip_inverse_dynamics",
+    "stickslip_joint_torque_regressor",
 ];
 
 // ---- functions without an instance ------------------------------------------------
@@ -800,22 +804,9 @@ pub unsafe extern "C" fn stickslip_inverse_dynamics(
 ) -> c_int {
     let run = || -> Result<(), Fault> {
         // SAFETY: the pointers are null or valid by the function's contract.
-        let toml = unsafe { text(model, "model") }?.to_string();
-        let urdf = if urdf.is_null() { None } else { Some(unsafe { text(urdf, "urdf") }?.to_string()) };
-        let settings = unsafe { slice(settings, n_settings, "settings[]") }?
-            .iter()
-            .map(|&s| unsafe { text(s, "settings[]") })
-            .collect::<Result<Vec<_>, _>>()?;
-        let model = ModelSource { toml, urdf }.model().map_err(|e| Fault::error(format!("the model: {e}")))?;
-        let model = with_settings(model, &settings).map_err(|e| Fault::error(format!("settings: {e}")))?;
+        let model = unsafe { model_with_settings(model, urdf, settings, n_settings) }?;
         let n = model.nq();
-        if columns != 3 * n {
-            return Err(Fault::error(format!(
-                "a state row has {columns} values, the model's has 3n = {} (q, qd, qdd of {n} joints)",
-                3 * n
-            )));
-        }
-        let values = rows.checked_mul(columns).ok_or_else(|| Fault::error(format!("{rows} rows are too many")))?;
+        let values = state_values(rows, columns, n)?;
         if size != rows * n {
             return Err(Fault::error(format!("size = {size}: {rows} rows of {n} joints need {}", rows * n)));
         }
@@ -828,11 +819,141 @@ pub unsafe extern "C" fn stickslip_inverse_dynamics(
         let lever_load = unsafe { slice_mut(lever_load, size, "lever_load[]") }?;
         inverse_dynamics_rows(&model, &mut Data::new(&model), states, tau, lever_load).map_err(Fault::error)
     };
+    // SAFETY: `message` is null or valid by contract.
+    unsafe { finish(run, message, message_size) }
+}
+
+/// The engine's joint-torque regressor at given states and the model's
+/// standard inertial parameters, from the FMU alone (the fit's
+/// python/stickslip/fit/regressor.py calls it with ctypes; no instance, no
+/// FMI state):
+///
+/// ```c
+/// int stickslip_joint_torque_regressor(
+///     const char *model, const char *urdf,                 /* resources/model.toml, its URDF or NULL */
+///     const char *const *settings, size_t n_settings,      /* "m[3]=8.0", ... */
+///     const double *states, size_t rows, size_t columns,   /* rows x [q(n), qd(n), qdd(n)], columns = 3n */
+///     double *regressor, size_t size,                      /* rows x n x 10n, size = rows * n * 10n */
+///     double *parameters, size_t n_parameters,             /* the standard parameters, n_parameters = 10n */
+///     char *message, size_t message_size);                 /* the reason of an error */
+/// ```
+///
+/// The model and `settings` as for [`stickslip_inverse_dynamics`]. Per row
+/// of `states` (SI units) it writes Y(q, q̇, q̈), row-major n × 10n, such that
+/// Y·π is [`stickslip_inverse_dynamics`]'s τ to rounding, and into
+/// `parameters` the model's standard parameters π, per link
+/// [m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] in its link
+/// frame, the inertia about the frame's origin
+/// ([`crate::algorithms::regressor`] says which frame that is).
+///
+/// Returns 0, or 1 with the reason, NUL-terminated and cut to
+/// `message_size` bytes, in `message` (an empty string on success): a model
+/// that does not parse, an unknown or refused setting, `columns` ≠ 3n,
+/// `size` ≠ rows·n·10n, `n_parameters` ≠ 10n, a NULL array that should have
+/// values, overlapping outputs, a state that is not finite (its row and
+/// name), an internal error. The outputs are then unspecified. With `rows` =
+/// 0, `states` and `regressor` are not looked at (π alone).
+///
+/// # Safety
+/// Each pointer is NULL or valid for the length its arguments give: `model`
+/// and `urdf` NUL-terminated, `settings[0..n_settings]` NUL-terminated strings,
+/// `states[0..rows·columns]`, `regressor[0..size]`, `parameters[0..n_parameters]`,
+/// `message[0..message_size]`.
+#[no_mangle]
+pub unsafe extern "C" fn stickslip_joint_torque_regressor(
+    model: *const c_char,
+    urdf: *const c_char,
+    settings: *const *const c_char,
+    n_settings: usize,
+    states: *const f64,
+    rows: usize,
+    columns: usize,
+    regressor: *mut f64,
+    size: usize,
+    parameters: *mut f64,
+    n_parameters: usize,
+    message: *mut c_char,
+    message_size: usize,
+) -> c_int {
+    let run = || -> Result<(), Fault> {
+        // SAFETY: the pointers are null or valid by the function's contract.
+        let model = unsafe { model_with_settings(model, urdf, settings, n_settings) }?;
+        let n = model.nq();
+        let values = state_values(rows, columns, n)?;
+        let per_row = n * LINK_PARAMETERS * n;
+        let need = rows.checked_mul(per_row).ok_or_else(|| Fault::error(format!("{rows} rows are too many")))?;
+        if size != need {
+            return Err(Fault::error(format!(
+                "size = {size}: {rows} rows of {n} x {} need {need}",
+                LINK_PARAMETERS * n
+            )));
+        }
+        if n_parameters != LINK_PARAMETERS * n {
+            return Err(Fault::error(format!(
+                "n_parameters = {n_parameters}: {n} links of {LINK_PARAMETERS} parameters need {}",
+                LINK_PARAMETERS * n
+            )));
+        }
+        let (a, b) = (regressor as usize, parameters as usize);
+        let f64s = size_of::<f64>();
+        let overlap = size > 0 && a < b.saturating_add(n_parameters * f64s) && b < a.saturating_add(size * f64s);
+        if overlap {
+            return Err(Fault::error("`regressor` and `parameters` overlap"));
+        }
+        let states = unsafe { slice(states, values, "states[]") }?;
+        let regressor = unsafe { slice_mut(regressor, size, "regressor[]") }?;
+        let parameters = unsafe { slice_mut(parameters, n_parameters, "parameters[]") }?;
+        standard_parameters(&model, parameters);
+        joint_torque_regressor_rows(&model, &mut Data::new(&model), states, regressor).map_err(Fault::error)
+    };
+    // SAFETY: `message` is null or valid by contract.
+    unsafe { finish(run, message, message_size) }
+}
+
+/// The model of the exports beyond FMI: `model`'s text (with `urdf`, the
+/// text of the URDF it names) with `settings` applied, then validated.
+///
+/// # Safety
+/// As the exports' contract says of these pointers.
+unsafe fn model_with_settings(
+    model: *const c_char,
+    urdf: *const c_char,
+    settings: *const *const c_char,
+    n_settings: usize,
+) -> Result<Model, Fault> {
+    // SAFETY: the pointers are null or valid by the caller's contract.
+    let toml = unsafe { text(model, "model") }?.to_string();
+    let urdf = if urdf.is_null() { None } else { Some(unsafe { text(urdf, "urdf") }?.to_string()) };
+    let settings = unsafe { slice(settings, n_settings, "settings[]") }?
+        .iter()
+        .map(|&s| unsafe { text(s, "settings[]") })
+        .collect::<Result<Vec<_>, _>>()?;
+    let model = ModelSource { toml, urdf }.model().map_err(|e| Fault::error(format!("the model: {e}")))?;
+    with_settings(model, &settings).map_err(|e| Fault::error(format!("settings: {e}")))
+}
+
+/// The number of state values of `rows` rows of `columns`, which must be 3n.
+fn state_values(rows: usize, columns: usize, n: usize) -> Result<usize, Fault> {
+    if columns != 3 * n {
+        return Err(Fault::error(format!(
+            "a state row has {columns} values, the model's has 3n = {} (q, qd, qdd of {n} joints)",
+            3 * n
+        )));
+    }
+    rows.checked_mul(columns).ok_or_else(|| Fault::error(format!("{rows} rows are too many")))
+}
+
+/// Runs an export's body, a panic caught; its status (0 or 1), and its
+/// reason (empty on success) into `message`.
+///
+/// # Safety
+/// `message` is null or valid for `message_size` bytes.
+unsafe fn finish(run: impl FnOnce() -> Result<(), Fault>, message: *mut c_char, message_size: usize) -> c_int {
     let (status, reason) = match catch(run) {
         Ok(()) => (0, String::new()),
         Err(fault) => (1, fault.message),
     };
-    // SAFETY: `message` is null or valid by contract; a buffer it cannot use is not written.
+    // A buffer it cannot use is not written.
     guard((), || {
         let _ = unsafe { write_text(message, message_size, &reason, "message") };
     });

@@ -4,9 +4,10 @@
 //!
 //! * `exports` — the 34 exported `fmi2…` functions; each names the
 //!   life-cycle states that allow it and runs inside `boundary`, which turns
-//!   pointers into checked slices and panics into fmi2Error; and the one
-//!   function beyond FMI, [`stickslip_inverse_dynamics`] (the engine's
-//!   inverse dynamics for the fit, from the FMU's own library);
+//!   pointers into checked slices and panics into fmi2Error; and the two
+//!   functions beyond FMI, [`stickslip_inverse_dynamics`] (the engine's
+//!   inverse dynamics for the fit, from the FMU's own library) and
+//!   [`stickslip_joint_torque_regressor`] (its joint-torque regressor);
 //! * `instance` — one instance's life cycle (`lifecycle`), inputs,
 //!   parameters and simulator, in safe Rust; FMU states in the byte format of
 //!   `snapshot`;
@@ -29,4 +30,4 @@ pub(crate) mod status;
 mod tests;
 pub mod uri;
 
-pub use exports::{stickslip_inverse_dynamics, EXPORTED_FUNCTIONS};
+pub use exports::{stickslip_inverse_dynamics, stickslip_joint_torque_regressor, EXPORTED_FUNCTIONS};

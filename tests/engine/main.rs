@@ -19,6 +19,7 @@ mod formulations;
 mod instruction_sets;
 mod inverse_dynamics_friction;
 mod joint_reactions;
+mod joint_torque_regressor;
 mod model_file;
 mod model_file_properties;
 mod motor_drive;
