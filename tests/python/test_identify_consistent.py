@@ -99,9 +99,8 @@ def _log(model, regressor, friction, seconds, seed, noise_seed):
 
 def _identify(truth, catalogue, friction, noise_seed):
     from stickslip.fit.filtering import default_filter
-    from stickslip.identify.base import base_parameters, random_states
     from stickslip.identify.consistent import estimate
-    from stickslip.identify.equations import column_names, equations, filtered
+    from stickslip.identify.equations import equations, filtered, structural_base
 
     n = truth.nq
     true_regressor = _regressor(truth)
@@ -109,16 +108,7 @@ def _identify(truth, catalogue, friction, noise_seed):
     motions = [filtered(log, default_filter(), coulomb=True) for log in logs]
     catalogue_regressor = _regressor(catalogue)  # the product knows only the catalogue
     eq = equations(motions, catalogue_regressor, "viscous+coulomb", True)
-    # the base parameters from random states, friction and armature columns included
-    states = random_states(n, 300, seed=5)
-    Y, _, names = catalogue_regressor(states)
-    qd, qdd = states[:, n : 2 * n], states[:, 2 * n :]
-    W = []
-    for i in range(n):
-        extra = np.zeros((len(states), 3 * n))
-        extra[:, 3 * i : 3 * i + 3] = np.column_stack([qd[:, i], np.sign(qd[:, i]), qdd[:, i]])
-        W.append(np.hstack([Y[:, i, :], extra]))
-    base = base_parameters(np.vstack(W), column_names(names, n, "viscous+coulomb", True))
+    base = structural_base(catalogue_regressor, n, "viscous+coulomb", True)
     return eq, base, estimate(eq, base, _pi(catalogue), prior=1e-4)
 
 

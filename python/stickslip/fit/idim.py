@@ -210,13 +210,15 @@ def _model_source(unzipdir) -> tuple:
     return text, (resources / urdf).read_text(encoding="utf-8") if isinstance(urdf, str) else None
 
 
-def inverse_dynamics(unzipdir, states, settings=()) -> tuple:
+def inverse_dynamics(unzipdir, states, settings=(), source=None) -> tuple:
     """(τ, L) at ``states`` (rows × [q(n), q̇(n), q̈(n)], SI units), both rows × n, by the
     engine in the unpacked FMU ``unzipdir``'s own binary: τ = M(q)·q̈ + bias(q, q̇) with
     gravity, L the lever load of each joint's friction (NaN for a joint without friction),
     on the FMU's model with ``settings`` (tunable parameters by FMU name, "m[3]=8.0")
-    applied. Raises :class:`StageUnavailable` where the binary cannot do it and
-    :class:`InverseDynamicsError` with the engine's reason where it refuses the input."""
+    applied; ``source``: (model file text, URDF text or None) in place of the FMU's own model
+    (an identified model, :mod:`stickslip.identify.model_file`). Raises
+    :class:`StageUnavailable` where the binary cannot do it and :class:`InverseDynamicsError`
+    with the engine's reason where it refuses the input."""
     engine = _engine(str(library_path(unzipdir)))
     states = np.ascontiguousarray(states, dtype=np.float64)
     if states.ndim != 2:
@@ -224,7 +226,7 @@ def inverse_dynamics(unzipdir, states, settings=()) -> tuple:
     rows, columns = states.shape
     n = columns // 3
     tau, load = np.full((rows, n), np.nan), np.full((rows, n), np.nan)
-    text, urdf = _model_source(unzipdir)
+    text, urdf = _model_source(unzipdir) if source is None else source
     encoded = [str(s).encode() for s in settings]
     message = ctypes.create_string_buffer(1024)
     double_p = ctypes.POINTER(ctypes.c_double)

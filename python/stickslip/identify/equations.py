@@ -60,6 +60,9 @@ class Motion:
     sign: np.ndarray  # sgn q̇ through the filter's smoothing, as the torques went through it
     tau: dict
     keep: dict  # joint -> boolean mask
+    time: np.ndarray = None
+    flt: object = None
+    loaded: np.ndarray = None  # L·sgn q̇ through the smoothing (:func:`with_lever_load`)
 
 
 def filtered(log, flt, coulomb: bool) -> Motion:
@@ -85,23 +88,39 @@ def filtered(log, flt, coulomb: bool) -> Motion:
     # The Coulomb torque jumps where q̇ changes sign; the measured torque reaches the equations
     # through the filter's smoothing, and so does the column that explains that jump.
     sign = derivatives(t, np.sign(qd), flt)[0]
-    return Motion(log.name, q, qd, qdd, sign, tau, keep)
+    return Motion(log.name, q, qd, qdd, sign, tau, keep, t, flt)
 
 
-def column_names(inertial_names, n: int, friction: str, armature: bool) -> list:
-    """The columns' names: the regressor's, then per joint b_v[i], tau_c[i], I_a[i] as chosen."""
+def with_lever_load(motion: Motion, lever) -> Motion:
+    """The motion with its dry-friction columns: ``lever(states)`` -> the lever load L of every
+    joint's friction at each state (the engine's joint reactions through the contact geometry,
+    (3.11)-(3.15); NaN for a joint without), L·sgn q̇ through the filter's smoothing."""
+    L = lever(np.hstack([motion.q, motion.qd, motion.qdd]))
+    motion.loaded = derivatives(motion.time, np.nan_to_num(L) * np.sign(motion.qd), motion.flt)[0]
+    return motion
+
+
+def column_names(inertial_names, n: int, friction: str, armature: bool, loaded=()) -> list:
+    """The columns' names: the regressor's, then per joint b_v[i], the dry friction and I_a[i]
+    as chosen; the dry friction of a joint in ``loaded`` (one with contact geometry) is the
+    study's μ_k[i]·L (its column L·sgn q̇), of any other a constant tau_c[i]·sgn q̇."""
     extra = []
     for i in range(1, n + 1):
         if "viscous" in friction:
             extra.append(f"b_v[{i}]")
         if "coulomb" in friction:
-            extra.append(f"tau_c[{i}]")
+            extra.append(f"mu_k[{i}]" if i in loaded else f"tau_c[{i}]")
         if armature:
             extra.append(f"I_a[{i}]")
     return list(inertial_names) + extra
 
 
-def equations(motions: list, regressor, friction: str, armature: bool, joints=None) -> Equations:
+def _extra(kind: str, qd, qdd, sign, loaded):
+    """A friction or armature column of one joint."""
+    return {"b_v": qd, "tau_c": sign, "mu_k": loaded, "I_a": qdd}[kind]
+
+
+def equations(motions: list, regressor, friction: str, armature: bool, joints=None, loaded=()) -> Equations:
     """The rows of every motion (:func:`filtered`) and measured joint (``joints``: those to use,
     default all measured); ``regressor(states) -> (Y, π, names)`` the engine's regressor of the
     arm (:func:`stickslip.fit.regressor.joint_torque_regressor` bound to its FMU)."""
@@ -112,7 +131,7 @@ def equations(motions: list, regressor, friction: str, armature: bool, joints=No
         n = motion.q.shape[1]
         Y, _, inertial_names = regressor(np.hstack([motion.q, motion.qd, motion.qdd]))
         if names is None:
-            names = column_names(inertial_names, n, friction, armature)
+            names = column_names(inertial_names, n, friction, armature, loaded)
         for i, tau in motion.tau.items():
             if joints is not None and i not in joints:
                 continue
@@ -122,8 +141,8 @@ def equations(motions: list, regressor, friction: str, armature: bool, joints=No
                 kind, _, rest = name.partition("[")
                 if int(rest[:-1]) != i:
                     continue
-                source = {"b_v": motion.qd[k, i - 1], "tau_c": motion.sign[k, i - 1], "I_a": motion.qdd[k, i - 1]}
-                extra[:, j] = source[kind]
+                dry = motion.loaded[k, i - 1] if kind == "mu_k" else None
+                extra[:, j] = _extra(kind, motion.qd[k, i - 1], motion.qdd[k, i - 1], motion.sign[k, i - 1], dry)
             rows_A.append(np.hstack([Y[k, i - 1, :], extra]))
             rows_b.append(tau[k])
             joint_of.append(np.full(int(k.sum()), i))
@@ -132,3 +151,28 @@ def equations(motions: list, regressor, friction: str, armature: bool, joints=No
     if names is None or offset == 0:
         raise ValueError("no torque samples left to identify from (every joint's rows were dropped)")
     return Equations(names, np.vstack(rows_A), np.concatenate(rows_b), np.concatenate(joint_of), blocks, Y.shape[2])
+
+
+def structural_base(regressor, n: int, friction: str, armature: bool, seed: int = 5, count: int = 300, lever=None):
+    """The base parameters of the equations' columns (:mod:`stickslip.identify.base`): the
+    regressor, friction and armature columns at ``count`` random states, each joint's row with
+    its own q̇, sgn q̇, L·sgn q̇ (``lever(states)``, for the joints with contact geometry) and q̈
+    in its friction and armature columns."""
+    from .base import base_parameters, random_states
+
+    states = random_states(n, count, seed)
+    Y, _, inertial_names = regressor(states)
+    L = lever(states) if lever is not None else np.full((count, n), np.nan)
+    loaded = [i for i in range(1, n + 1) if np.all(np.isfinite(L[:, i - 1]))]
+    names = column_names(inertial_names, n, friction, armature, loaded)
+    qd, qdd = states[:, n : 2 * n], states[:, 2 * n :]
+    rows = []
+    for i in range(1, n + 1):
+        extra = np.zeros((count, len(names) - Y.shape[2]))
+        for j, name in enumerate(names[Y.shape[2] :]):
+            kind, _, rest = name.partition("[")
+            if int(rest[:-1]) == i:
+                sign = np.sign(qd[:, i - 1])
+                extra[:, j] = _extra(kind, qd[:, i - 1], qdd[:, i - 1], sign, L[:, i - 1] * sign)
+        rows.append(np.hstack([Y[:, i - 1, :], extra]))
+    return base_parameters(np.vstack(rows), names)
