@@ -133,6 +133,11 @@ def main(argv=None) -> int:
     s = sub.add_parser("fit", help="the FMU's parameters from measured runs, with standard errors")
     fit_cli.add_arguments(s)
     s.set_defaults(main=fit_cli.main)
+    from .identify import cli as identify_cli
+
+    s = sub.add_parser("identify", help="a real arm's links, friction and drives from its torque logs")
+    identify_cli.add_arguments(s)
+    s.set_defaults(main=identify_cli.main)
     a = p.parse_args(argv)
     return a.main(a)
 
