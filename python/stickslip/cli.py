@@ -138,6 +138,11 @@ def main(argv=None) -> int:
     s = sub.add_parser("identify", help="a real arm's links, friction and drives from its torque logs")
     identify_cli.add_arguments(s)
     s.set_defaults(main=identify_cli.main)
+    from .identify import excitation
+
+    s = sub.add_parser("excite", help="a periodic excitation trajectory for identification, as a motion file")
+    excitation.add_arguments(s)
+    s.set_defaults(main=excitation.main)
     a = p.parse_args(argv)
     return a.main(a)
 
