@@ -2,7 +2,7 @@
 well as the joints' limits allow (Swevers, Ganseman, Tükel, De Schutter and Van Brussel,
 "Optimal robot excitation and identification", IEEE Trans. Robotics and Automation 13(5), 1997).
 
-Each joint i follows a finite Fourier series of fundamental ω_f = 2π/T and L harmonics (their (4)):
+Each joint i follows a finite Fourier series of fundamental ω_f = 2π/T and L harmonics:
 
     q_i(t)   = q0_i + Σ_l [a_il/(ω_f l) sin(ω_f l t) − b_il/(ω_f l) cos(ω_f l t)],
     q̇_i(t)  =        Σ_l [a_il cos(ω_f l t) + b_il sin(ω_f l t)],
@@ -27,13 +27,14 @@ condition number then does not depend on the parameters' units (kg against kg·m
 what the motion separates, not a choice of units.
 
 The limits are linear in the free parameters, q, q̇, q̈ being linear in them, and are imposed at
-M = 20·L instants of one period with every limit tightened by ε = (πL/M)² = (π/20)² (2.5 %):
-between two of those instants a trigonometric polynomial of degree L cannot go further than
-that beyond them (its second derivative is at most (ω_f L)² times its largest value, Bernstein's
-inequality, and the nearest instant is at most T/(2M) away from the extreme), so the limits hold
-at every t. :func:`design` minimizes log10 of the condition number from ``starts`` seeded
-random starts by SLSQP (scipy.optimize.minimize) under those linear constraints, the gradient by
-forward differences from one call of the engine. Each start is the *naive* trajectory: the same
+M = 20·L instants of one period with every limit tightened by ε = (πL/M)² = (π/20)² (2.5 %),
+so that they hold at every t: near its extreme a trigonometric polynomial p of degree L falls by
+at most ½ (ω_f L)² max|p − p̄| h² within h (Bernstein's inequality for p''), and the nearest
+instant is h ≤ T/(2M) away; that is ε/2 of the extreme for q̇ and q̈ (mean zero) and ε of the
+half range for q (whose mean q0 lies in its range). :func:`design` minimizes log10 of the
+condition number from ``starts`` seeded random starts by SLSQP (scipy.optimize.minimize) under
+those linear constraints, its gradient from the extreme singular vectors and one batched call of
+the engine (:meth:`Criterion.log_condition_gradient`). Each start is the *naive* trajectory: the same
 harmonics with standard-normal coefficients, centred in the position range and scaled until its
 tightest limit is reached; its condition number is reported for comparison.
 """
@@ -175,19 +176,20 @@ def urdf_limits(unzipdir, names: dict) -> dict:
     lower and upper, read from the URDF the unpacked FMU's resources/model.toml names (its
     joints by their URDF names ``names``, {i: name}); empty for a model without a URDF."""
     resources = Path(unzipdir) / "resources"
-    urdf = tomllib.loads((resources / "model.toml").read_text(encoding="utf-8")).get("urdf")
-    if not isinstance(urdf, str):
-        return {}
     by_name = {}
-    for joint in ET.parse(resources / urdf).getroot().iter():
-        if joint.tag.rpartition("}")[2] != "joint":
-            continue
-        limit = next((e for e in joint if e.tag.rpartition("}")[2] == "limit"), None)
-        if joint.get("type") in ("revolute", "prismatic") and limit is not None:
-            lower, upper = limit.get("lower"), limit.get("upper")
-            if lower is not None and upper is not None:
-                velocity = limit.get("velocity")
+    try:
+        urdf = tomllib.loads((resources / "model.toml").read_text(encoding="utf-8")).get("urdf")
+        if not isinstance(urdf, str):
+            return {}
+        for joint in ET.parse(resources / urdf).getroot().iter():
+            limit = next((e for e in joint if e.tag.rpartition("}")[2] == "limit"), None)
+            if joint.tag.rpartition("}")[2] != "joint" or limit is None:
+                continue
+            lower, upper, velocity = (limit.get(x) for x in ("lower", "upper", "velocity"))
+            if joint.get("type") in ("revolute", "prismatic") and lower is not None and upper is not None:
                 by_name[joint.get("name")] = (float(lower), float(upper), float(velocity) if velocity else None)
+    except (OSError, ValueError, ET.ParseError) as e:
+        raise ExcitationError(f"the FMU's model or its URDF cannot be read for the joints' limits: {e}") from None
     return {i: by_name[name] for i, name in names.items() if name in by_name}
 
 
@@ -221,11 +223,12 @@ def limits_of(n: int, model: dict, q_min=None, q_max=None, qd_max=None, qdd_max=
             )
         if not lo < hi:
             raise ExcitationError(f"joint {i}: the position range [{lo:g}, {hi:g}] is empty: need qmin < qmax")
-        v = min(DEFAULT_VMAX, velocity) if qd_max is None and velocity else DEFAULT_VMAX
-        v = qd_max[i - 1] if qd_max is not None else v
+        v = qd_max[i - 1] if qd_max is not None else min(DEFAULT_VMAX, velocity or math.inf)
         if velocity is not None and v > velocity:
             raise ExcitationError(f"joint {i}: --vmax {v:g} is beyond the URDF's velocity limit {velocity:g}")
-        low.append(lo), high.append(hi), vel.append(v)
+        low.append(lo)
+        high.append(hi)
+        vel.append(v)
         acc.append(DEFAULT_AMAX if qdd_max is None else qdd_max[i - 1])
     for what, values in (("--vmax", vel), ("--amax", acc)):
         bad = [(i, x) for i, x in enumerate(values, 1) if not x > 0]
@@ -240,7 +243,6 @@ class Constraints:
     that they hold between the instants too (the module's docstring)."""
 
     def __init__(self, limits: Limits, period: float, harmonics: int):
-        self.limits, self.period, self.harmonics = limits, period, harmonics
         M = GRID_PER_HARMONIC * harmonics
         self.margin = (math.pi / GRID_PER_HARMONIC) ** 2
         E = rest_map(harmonics)
