@@ -127,7 +127,13 @@ def bartlett_window(r) -> int:
 
 def long_run_covariance(J, r, blocks: list) -> tuple:
     """(S, lag windows): Σ over the series of Σ_l k(l) Σ_t g_t g_{t+l}ᵀ with g_t = J_t r_t and
-    Bartlett weights k(l) = 1 − |l|/(L+1), L per series (:func:`bartlett_window`)."""
+    Bartlett weights k(l) = 1 − |l|/(L+1), L per series (:func:`bartlett_window`).
+
+    The Bartlett kernel is a box of L+1 samples correlated with itself, so the sum is that of
+    the moving sums h_s = Σ_{t=s}^{s+L} g_t (g = 0 outside the series): Σ_s h_s h_sᵀ/(L+1)
+    weighs g_t g_uᵀ by the windows holding both, L+1−|t−u|. One pass of cumulative sums, p²
+    per sample, where the lag-by-lag sum cost p² per sample and lag (a 5000-sample series with
+    a window of 1000 lags: 1000 times as much)."""
     p = J.shape[1]
     S = np.zeros((p, p))
     lags = []
@@ -135,10 +141,11 @@ def long_run_covariance(J, r, blocks: list) -> tuple:
         g = J[start:stop] * r[start:stop, None]
         L = bartlett_window(r[start:stop])
         lags.append(L)
-        S += g.T @ g
-        for lag in range(1, L + 1):
-            c = g[lag:].T @ g[:-lag]
-            S += (1.0 - lag / (L + 1.0)) * (c + c.T)
+        c = np.vstack([np.zeros((1, p)), np.cumsum(g, axis=0)])
+        n = len(g)
+        s = np.arange(-L, n)  # window s covers rows s..s+L, clipped to the series
+        h = c[np.minimum(s + L + 1, n)] - c[np.maximum(s, 0)]
+        S += h.T @ h / (L + 1.0)
     return S, lags
 
 

@@ -45,6 +45,7 @@ def identify(spec, out=None, progress=None) -> dict:
     from ..fit.idim import inverse_dynamics
     from ..fit.regressor import joint_torque_regressor
     from ..fmu import content_hash, unpacked
+    from .model_file import model_texts
 
     t0 = time.perf_counter()
     say = progress or (lambda line: None)
@@ -75,12 +76,13 @@ def identify(spec, out=None, progress=None) -> dict:
         mu = np.array([est.theta[eq.names.index(f"mu_k[{i}]")] for i in loaded])
         iterations.append({"mu_k": dict(zip(loaded, mu.tolist(), strict=True)), "solver": est.solver["status"]})
         say(f"identify: physically consistent model: {est.solver['status']} ({time.perf_counter() - t0:.1f} s)")
-        if not loaded or (previous is not None and np.allclose(mu, previous, rtol=LEVER_CHANGE, atol=0.0)):
+        settled = previous is not None and np.allclose(mu, previous, rtol=LEVER_CHANGE, atol=0.0)
+        if not loaded or settled or len(iterations) == LEVER_ITERATIONS:
             break
         # The lever loads come from the joint reactions, which the links' inertias set: again at
         # the identified links, until μ_k no longer moves.
         previous = mu
-        source = model_texts(unzipdir, est.theta[: eq.inertial])
+        source = model_texts(unzipdir, est.theta[: eq.inertial], urdf_file_name="iteration.urdf")
         motions = [with_lever_load(m, lever(source)) for m in logs]
     catalogue_theta = np.concatenate([pi_catalogue, np.zeros(len(eq.names) - eq.inertial)])
     per_joint = per_joint_fit(motions)
@@ -165,18 +167,6 @@ def identify(spec, out=None, progress=None) -> dict:
 
         write(result, Path(out))
     return result
-
-
-def model_texts(unzipdir, pi) -> tuple:
-    """(model file text, URDF text or None) of the FMU's model with the links' standard
-    parameters ``pi``: what :func:`stickslip.fit.idim.inverse_dynamics` takes as ``source``."""
-    import tempfile
-
-    from .model_file import write_model
-
-    with tempfile.TemporaryDirectory() as tmp:
-        toml, urdf = write_model(unzipdir, tmp, pi=pi, name="iteration")
-        return Path(toml).read_text(encoding="utf-8"), Path(urdf).read_text(encoding="utf-8") if urdf else None
 
 
 def model_settings(names, theta, unzipdir) -> tuple:
