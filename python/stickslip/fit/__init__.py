@@ -694,6 +694,14 @@ def _summarize(
             f"start {s.origin!r} ended in a different minimum of similar cost ({s.cost:.6g} vs {best.cost:.6g}), "
             f"differing in {', '.join(apart)}: the data do not single out one solution"
         )
+    # Minima the data cannot tell apart are part of the answer's uncertainty: each parameter's
+    # distance to the farthest of them joins its standard error (root sum of squares).
+    spread = np.zeros(len(names))
+    for s, _ in similar:
+        spread = np.maximum(spread, np.abs(transform.theta(s.z) - theta))
+    for j, name in enumerate(names):
+        params[name]["std_error_minima"] = float(spread[j])
+        params[name]["std_error"] = math.hypot(params[name]["std_error"], spread[j])
     lower = None
     if lowest.theta is not None and lowest.cost < cost - NOT_A_MINIMUM * unc.scale:
         lower = (lowest.cost, lowest.theta)
@@ -774,7 +782,7 @@ def _summarize(
             "theta": theta,
             "runs": runs,
             # the numerical part is independent of the statistical one: added on the diagonal
-            "covariance": unc.covariance + np.diag(numerical**2),
+            "covariance": unc.covariance + np.diag(numerical**2 + spread**2),
             "lower": lower,
             "problem": problem,
         },

@@ -159,7 +159,9 @@ def report_md(result: dict, spec, figures: list) -> str:
     lines += [
         "",
         "The standard error is the largest of the classical σ̂²(JᵀJ)⁻¹ one, the sandwich one (residuals "
-        "correlated in time) and, for a profiled parameter, the profile interval's half-width / 1.96.",
+        "correlated in time) and, for a profiled parameter, the profile interval's half-width / 1.96; joined in "
+        "root sum of squares by the FMU's numerical error where it exceeds that (the estimate's move between the "
+        "last two error tolerances) and by the distance to other minima of similar cost (NOT UNIQUE).",
     ]
     lines += [
         "",
