@@ -84,11 +84,15 @@ def identify(spec, out=None, progress=None) -> dict:
         previous = mu
         source = model_texts(unzipdir, est.theta[: eq.inertial], urdf_file_name="iteration.urdf")
         motions = [with_lever_load(m, lever(source)) for m in logs]
+    # The held-out runs' lever loads at the identified links.
+    final = model_texts(unzipdir, est.theta[: eq.inertial], urdf_file_name="identified.urdf") if loaded else None
     catalogue_theta = np.concatenate([pi_catalogue, np.zeros(len(eq.names) - eq.inertial)])
     per_joint = per_joint_fit(motions)
     validation, series = {}, {}
     for log in spec.heldout:
-        motion = filtered(log, spec.derivatives, coulomb=False)
+        # The samples where the model's friction law holds: a joint at rest holds any friction up
+        # to its static limit, which no sgn q̇ law predicts; the same rows the fit keeps.
+        motion = with_lever_load(filtered(log, spec.derivatives, coulomb), lever(final))
         predicted = predictions(
             motion,
             regressor,
@@ -96,6 +100,7 @@ def identify(spec, out=None, progress=None) -> dict:
             spec.armature,
             {"identified": est.theta, "catalogue": catalogue_theta},
             per_joint,
+            loaded,
         )
         validation[log.name] = table(predicted)
         series[log.name] = (log.time, predicted)
@@ -187,13 +192,13 @@ def model_settings(names, theta, unzipdir) -> tuple:
         i = rest[:-1]
         gear = start.get(f"gear_ratio[{i}]")
         if kind in ("b_v", "mu_k") and name in start:
-            settings.append(f"{name}={value!r}")
+            settings.append(f"{name}={float(value)!r}")
             if kind == "mu_k" and f"mu_s[{i}]" in start and float(start[f"mu_s[{i}]"]) < value:
-                settings.append(f"mu_s[{i}]={value!r}")
+                settings.append(f"mu_s[{i}]={float(value)!r}")
         elif kind == "tau_c" and f"tau_c[{i}]" in start and gear is not None:
-            settings.append(f"tau_c[{i}]={value / float(gear)!r}")
+            settings.append(f"tau_c[{i}]={float(value) / float(gear)!r}")
         elif kind == "I_a" and f"J_m[{i}]" in start and gear is not None:
-            settings.append(f"J_m[{i}]={value / float(gear) ** 2!r}")
+            settings.append(f"J_m[{i}]={float(value) / float(gear) ** 2!r}")
         elif value != 0.0:
             unwritten.append(f"{name} = {value:.6g}")
     return settings, unwritten

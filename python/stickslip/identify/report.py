@@ -126,7 +126,7 @@ def _figures(result: dict, out: Path) -> list:
             ax.plot(time, s["measured"], color="0.2", lw=1.2, label="measured")
             for name, style in (("identified", "-"), ("catalogue", ":"), ("per joint", "--")):
                 if name in s:
-                    err = result["validation"][run][i][name]
+                    err = result["validation"][run][str(i)][name]
                     ax.plot(time, s[name], style, lw=1.0, label=f"{name} ({100 * err:.1f} %)")
             ax.set_ylabel(f"τ[{i}]")
             ax.legend(fontsize=7, loc="upper right", ncol=4)

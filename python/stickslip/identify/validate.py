@@ -41,11 +41,12 @@ def relative_rms(predicted, measured) -> float:
     return math.sqrt(float(np.mean((predicted - measured) ** 2))) / scale if scale > 0 else math.inf
 
 
-def predictions(motion, regressor, friction: str, armature: bool, models: dict, per_joint: dict) -> dict:
+def predictions(motion, regressor, friction: str, armature: bool, models: dict, per_joint: dict, loaded=()) -> dict:
     """Per joint of the held-out ``motion``: time series of the measured torque and of each
     model's prediction ("identified", "catalogue": θ vectors of the equations' columns; "per
-    joint": :func:`per_joint_fit`), at every sample inside the filter's reach."""
-    eq: Equations = equations([motion], regressor, friction, armature)
+    joint": :func:`per_joint_fit`), at the samples the motion keeps (where the friction law
+    holds: the joint moves for certain); ``loaded``: the joints whose dry friction is μ_k·L."""
+    eq: Equations = equations([motion], regressor, friction, armature, loaded=loaded)
     out = {}
     for i in sorted(motion.tau):
         rows = eq.joint == i
