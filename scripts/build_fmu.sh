@@ -36,9 +36,10 @@
 #      darwin64 dylib is linked stripped: stripping afterwards would break
 #      the arm64 slice's code signature)
 #   4. checks every shipped binary's interface: exactly the 34 FMI 2.0
-#      functions, stickslip_inverse_dynamics and stickslip_joint_torque_regressor
-#      (the engine's inverse dynamics and its joint-torque regressor for the
-#      fit, src/fmi/exports.rs) exported (the 75 FMI 3.0 functions
+#      functions, stickslip_inverse_dynamics, stickslip_joint_torque_regressor
+#      and stickslip_write_model (the engine's inverse dynamics and its
+#      joint-torque regressor for the fit, the identified model written as a
+#      model file, src/fmi/exports.rs) exported (the 75 FMI 3.0 functions
 #      only for the FMI 3.0 library); the DLL imports Windows system DLLs only; each
 #      darwin64 slice imports libSystem only, has the install name
 #      @rpath/StickSlipManipulator.dylib, the minimum macOS 10.13 (x86_64) or
@@ -107,13 +108,14 @@ STRIPPED="$TARGET_DIR/fmu/stripped"
 mkdir -p "$STRIPPED"
 
 # The interface of a binary is the FMU's: the 34 fmi2 functions of FMI 2.0
-# and the two functions beyond FMI, stickslip_inverse_dynamics and
-# stickslip_joint_torque_regressor, or the 75 fmi3 functions of FMI 3.0,
+# and the three functions beyond FMI, stickslip_inverse_dynamics,
+# stickslip_joint_torque_regressor and stickslip_write_model, or the 75 fmi3
+# functions of FMI 3.0,
 # nothing else.
 # check_exports FILE [fmi3] < exported names
 check_exports() {
     local symbols count extra version="${2:-fmi2}" want=34
-    local beyond="stickslip_inverse_dynamics stickslip_joint_torque_regressor"
+    local beyond="stickslip_inverse_dynamics stickslip_joint_torque_regressor stickslip_write_model"
     [ "$version" = fmi3 ] && want=75 beyond=""
     symbols=$(sort)
     count=$(printf '%s\n' "$symbols" | grep -c "^$version" || true)

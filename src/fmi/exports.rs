@@ -1,11 +1,12 @@
 //! The 34 exported functions of FMI 2.0 (common + co-simulation). Each one
 //! names the life-cycle states that allow it and hands checked arguments to
-//! [`Instance`]. Beside them two functions beyond FMI, which an FMI master
+//! [`Instance`]. Beside them three functions beyond FMI, which an FMI master
 //! never calls: [`stickslip_inverse_dynamics`], the engine's inverse
-//! dynamics for the fit's equation-error stage, and
+//! dynamics for the fit's equation-error stage,
 //! [`stickslip_joint_torque_regressor`], its joint-torque regressor and the
-//! model's standard inertial parameters; nothing else is exported from the
-//! library.
+//! model's standard inertial parameters, and [`stickslip_write_model`], the
+//! model with identified values written as a model file; nothing else is
+//! exported from the library.
 //!
 //! Beyond FMI 2.0, which leaves the slave's behaviour there open,
 //! fmi2DoStep, fmi2SetReal, fmi2SetBoolean and fmi2SetRealInputDerivatives
@@ -27,8 +28,10 @@ use super::logger::{Category, Logger};
 use super::status::{Fault, Status};
 use super::uri::resource_path;
 use crate::algorithms::inverse_dynamics::{inverse_dynamics_rows, with_settings};
-use crate::algorithms::regressor::{joint_torque_regressor_rows, standard_parameters, LINK_PARAMETERS};
-use crate::model::{Model, ModelSource};
+use crate::algorithms::regressor::{
+    joint_torque_regressor_rows, standard_parameters, with_standard_parameters, LINK_PARAMETERS,
+};
+use crate::model::{model_file, Model, ModelSource};
 use crate::Data;
 use fmi_sys::fmi2::*;
 use std::ffi::{c_char, c_int, CString};
@@ -77,8 +80,8 @@ const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
 const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
 
 /// The names of the exported functions (the library's whole symbol table):
-/// the 34 of FMI 2.0, then the two beyond it.
-pub const EXPORTED_FUNCTIONS: [&str; 36] = [
+/// the 34 of FMI 2.0, then the three beyond it.
+pub const EXPORTED_FUNCTIONS: [&str; 37] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
     "fmi2SetDebugLogging",
@@ -115,6 +118,7 @@ pub const EXPORTED_FUNCTIONS: [&str; 36] = [
     "fmi2GetStringStatus",
     "stickslip_inverse_dynamics",
     "stickslip_joint_torque_regressor",
+    "stickslip_write_model",
 ];
 
 // ---- functions without an instance ------------------------------------------------
@@ -908,6 +912,125 @@ pub unsafe extern "C" fn stickslip_joint_torque_regressor(
     };
     // SAFETY: `message` is null or valid by contract.
     unsafe { finish(run, message, message_size) }
+}
+
+/// The model with identified values written as a model file, and for a URDF
+/// model the URDF it names, from the FMU alone (python/stickslip/identify/model_file.py
+/// calls it with ctypes; no instance, no FMI state):
+///
+/// ```c
+/// int stickslip_write_model(
+///     const char *model, const char *urdf,                 /* resources/model.toml, its URDF or NULL */
+///     const char *const *settings, size_t n_settings,      /* "mu_k[1]=0.03", ... */
+///     const double *parameters, size_t n_parameters,       /* the standard parameters (10n), or 0: keep the links */
+///     const char *urdf_file_name,                          /* the `urdf = "..."` of the written model file */
+///     char *toml, size_t toml_size,                        /* the written model file */
+///     char *urdf_out, size_t urdf_size,                    /* the written URDF */
+///     size_t *toml_needed, size_t *urdf_needed,            /* the sizes they need, NUL included */
+///     char *message, size_t message_size);                 /* the reason of an error */
+/// ```
+///
+/// The model and `settings` as for [`stickslip_inverse_dynamics`]; then,
+/// with `n_parameters` = 10n, the links from the standard parameters
+/// `parameters` (per link [m, m·c_x, m·c_y, m·c_z, I_xx, I_xy, I_yy, I_xz,
+/// I_yz, I_zz] in its link frame, the order and frames of
+/// [`stickslip_joint_torque_regressor`]'s π), refused where a link is not
+/// physically consistent (with_standard_parameters; the message names the
+/// link). It writes the model file [`model_file`] writes from the result,
+/// naming its URDF `urdf_file_name` (a URDF model; ignored and may be NULL
+/// without a URDF), each NUL-terminated.
+///
+/// Returns 0 with both texts written and `*toml_needed`, `*urdf_needed` their
+/// sizes (NUL included; `*urdf_needed` = 0 and `urdf_out` not looked at
+/// without a URDF); 2 when a buffer is too small: nothing written but the
+/// two sizes and the message, so that the caller can allocate and call again
+/// (a first call with sizes 0 asks for them); or 1 with the reason in
+/// `message` (as [`stickslip_inverse_dynamics`]): the model does not parse,
+/// a setting is unknown or refused, `n_parameters` is neither 0 nor 10n, a
+/// link's parameters are physically impossible, a NULL pointer that should
+/// be one, `toml` and `urdf_out` overlap, an internal error.
+///
+/// # Safety
+/// Each pointer is NULL or valid for the length its arguments give: `model`,
+/// `urdf` and `urdf_file_name` NUL-terminated, `settings[0..n_settings]`
+/// NUL-terminated strings, `parameters[0..n_parameters]`, `toml[0..toml_size]`,
+/// `urdf_out[0..urdf_size]`, `toml_needed` and `urdf_needed` one each,
+/// `message[0..message_size]`.
+#[no_mangle]
+pub unsafe extern "C" fn stickslip_write_model(
+    model: *const c_char,
+    urdf: *const c_char,
+    settings: *const *const c_char,
+    n_settings: usize,
+    parameters: *const f64,
+    n_parameters: usize,
+    urdf_file_name: *const c_char,
+    toml: *mut c_char,
+    toml_size: usize,
+    urdf_out: *mut c_char,
+    urdf_size: usize,
+    toml_needed: *mut usize,
+    urdf_needed: *mut usize,
+    message: *mut c_char,
+    message_size: usize,
+) -> c_int {
+    let mut too_small = false;
+    let run = || -> Result<(), Fault> {
+        // SAFETY: the pointers are null or valid by the function's contract.
+        let source_model = unsafe { model_with_settings(model, urdf, settings, n_settings) }?;
+        let toml_needed = unsafe { out(toml_needed, "toml_needed") }?;
+        let urdf_needed = unsafe { out(urdf_needed, "urdf_needed") }?;
+        let n = source_model.nq();
+        let identified = match n_parameters {
+            0 => source_model,
+            k if k == LINK_PARAMETERS * n => {
+                let pi = unsafe { slice(parameters, n_parameters, "parameters[]") }?;
+                with_standard_parameters(source_model, pi).map_err(|e| Fault::error(format!("parameters: {e}")))?
+            }
+            k => {
+                return Err(Fault::error(format!(
+                    "n_parameters = {k}: 0 (keep the links) or {n} links of {LINK_PARAMETERS} parameters, {}",
+                    LINK_PARAMETERS * n
+                )))
+            }
+        };
+        // SAFETY: as above.
+        let source = ModelSource {
+            toml: unsafe { text(model, "model") }?.to_string(),
+            urdf: if urdf.is_null() { None } else { Some(unsafe { text(urdf, "urdf") }?.to_string()) },
+        };
+        let file_name = match &source.urdf {
+            Some(_) => unsafe { text(urdf_file_name, "urdf_file_name") }?,
+            None => "",
+        };
+        let written = model_file(&identified, &source, file_name).map_err(|e| Fault::error(format!("{e}")))?;
+        *toml_needed = written.toml.len() + 1;
+        *urdf_needed = written.urdf.as_ref().map_or(0, |u| u.len() + 1);
+        if toml_size < *toml_needed || urdf_size < *urdf_needed {
+            too_small = true;
+            return Err(Fault::error(format!(
+                "toml_size = {toml_size}, urdf_size = {urdf_size}: the model file needs {} bytes and the URDF {} \
+                 (NUL included)",
+                *toml_needed, *urdf_needed
+            )));
+        }
+        let (a, b) = (toml as usize, urdf_out as usize);
+        if *urdf_needed > 0 && a < b.saturating_add(*urdf_needed) && b < a.saturating_add(*toml_needed) {
+            return Err(Fault::error("`toml` and `urdf_out` overlap"));
+        }
+        unsafe { write_text(toml, *toml_needed, &written.toml, "toml") }?;
+        if let Some(text) = &written.urdf {
+            unsafe { write_text(urdf_out, *urdf_needed, text, "urdf_out") }?;
+        }
+        Ok(())
+    };
+    // SAFETY: `message` is null or valid by contract.
+    let status = unsafe { finish(run, message, message_size) };
+    if too_small {
+        2
+    } else {
+        status
+    }
 }
 
 /// The model of the exports beyond FMI: `model`'s text (with `urdf`, the

@@ -4,10 +4,11 @@
 //!
 //! * `exports` — the 34 exported `fmi2…` functions; each names the
 //!   life-cycle states that allow it and runs inside `boundary`, which turns
-//!   pointers into checked slices and panics into fmi2Error; and the two
+//!   pointers into checked slices and panics into fmi2Error; and the three
 //!   functions beyond FMI, [`stickslip_inverse_dynamics`] (the engine's
-//!   inverse dynamics for the fit, from the FMU's own library) and
-//!   [`stickslip_joint_torque_regressor`] (its joint-torque regressor);
+//!   inverse dynamics for the fit, from the FMU's own library),
+//!   [`stickslip_joint_torque_regressor`] (its joint-torque regressor) and
+//!   [`stickslip_write_model`] (the model with identified values as a model file);
 //! * `instance` — one instance's life cycle (`lifecycle`), inputs,
 //!   parameters and simulator, in safe Rust; FMU states in the byte format of
 //!   `snapshot`;
@@ -30,4 +31,6 @@ pub(crate) mod status;
 mod tests;
 pub mod uri;
 
-pub use exports::{stickslip_inverse_dynamics, stickslip_joint_torque_regressor, EXPORTED_FUNCTIONS};
+pub use exports::{
+    stickslip_inverse_dynamics, stickslip_joint_torque_regressor, stickslip_write_model, EXPORTED_FUNCTIONS,
+};

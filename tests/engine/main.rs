@@ -22,6 +22,7 @@ mod joint_reactions;
 mod joint_torque_regressor;
 mod model_file;
 mod model_file_properties;
+mod model_writer;
 mod motor_drive;
 mod motor_inputs;
 mod parameter_space;
