@@ -81,22 +81,17 @@ const ABSOLUTE: f64 = 1e-15;
 ///
 /// The written text begins with a comment that says where it comes from and
 /// what differs from `source`. Errors: a source that does not parse, and a
-/// model that is not the source's chain (other joints, geometry or drive
-/// kinds: the written files would not read back to it), named by the first
-/// value that differs.
+/// model that is not the source's chain (another number of joints, other
+/// joint kinds or placements: the written files would not read back to it),
+/// named by the first value that differs.
 pub fn model_file(model: &Model, source: &ModelSource, urdf_file_name: &str) -> Result<WrittenModel, ModelError> {
     let original = source.model()?;
     let file: SourceFile = toml::from_str(&source.toml).map_err(|e| ModelError::Syntax { reason: e.to_string() })?;
     let header = header(model, &original, &file);
+    // A source naming a URDF came with it: `original` was read from both.
     let written = match (&file.urdf, &source.urdf) {
-        (None, _) => WrittenModel { toml: dh_file(model, &file, &header)?, urdf: None },
         (Some(_), Some(xml)) => urdf_files(model, &original, &file, xml, urdf_file_name, &header)?,
-        (Some(name), None) => {
-            return Err(ModelError::Io {
-                path: name.clone(),
-                reason: "the model names a URDF, but none was supplied with it".into(),
-            })
-        }
+        _ => WrittenModel { toml: dh_file(model, &file, &header)?, urdf: None },
     };
     let read = ModelSource { toml: written.toml.clone(), urdf: written.urdf.clone() }.model().map_err(|e| {
         ModelError::Invalid { field: "written model".into(), reason: format!("does not read back: {e}") }
@@ -106,7 +101,7 @@ pub fn model_file(model: &Model, source: &ModelSource, urdf_file_name: &str) -> 
             field,
             reason: format!(
                 "the model differs from its source `{}` beyond what a model file written from that source can say \
-                 (the chain, its geometry, or the kinds of its drives and contacts)",
+                 (its joints, their kinds and placements)",
                 original.name
             ),
         });
@@ -785,7 +780,7 @@ fn values(model: &Model) -> (String, Vec<(String, Vec<f64>)>) {
 fn first_difference(a: &Model, b: &Model) -> Option<String> {
     let ((exact_a, groups_a), (exact_b, groups_b)) = (values(a), values(b));
     if exact_a != exact_b || groups_a.len() != groups_b.len() {
-        return Some("joint".into());
+        return Some("chain (name, joint names and kinds, drive and contact kinds, integrator)".into());
     }
     groups_a.iter().zip(&groups_b).find_map(|((field, x), (_, y))| {
         let scale = x.iter().chain(y).fold(0.0_f64, |m, v| m.max(v.abs()));
