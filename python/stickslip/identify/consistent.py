@@ -64,6 +64,7 @@ class Estimates:
     condition: float  # of the column-scaled weighted base regressor
     solver: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    std_error_catalogue: np.ndarray = None  # what the unidentified combinations add (identification.py)
 
 
 def scales(pi_catalogue, n_extra: int, extra_scale: float = 1.0) -> np.ndarray:

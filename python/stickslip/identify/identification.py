@@ -84,6 +84,21 @@ def identify(spec, out=None, progress=None) -> dict:
         previous = mu
         source = model_texts(unzipdir, est.theta[: eq.inertial], urdf_file_name="iteration.urdf")
         motions = [with_lever_load(m, lever(source)) for m in logs]
+    if loaded:
+        spread = unidentified_spread(
+            est,
+            eq,
+            base,
+            logs,
+            regressor,
+            spec,
+            lambda pi: lever(model_texts(unzipdir, pi, urdf_file_name="x.urdf")),
+            loaded,
+        )
+        est.std_error_catalogue = spread
+        est.std_error = np.hypot(est.std_error, spread)
+        worst = float(np.max(spread / est.std_error))
+        say(f"identify: the unidentified combinations add up to {worst:.2f} of a standard error through the loads")
     # The held-out runs' lever loads at the identified links.
     final = model_texts(unzipdir, est.theta[: eq.inertial], urdf_file_name="identified.urdf") if loaded else None
     catalogue_theta = np.concatenate([pi_catalogue, np.zeros(len(eq.names) - eq.inertial)])
@@ -130,6 +145,9 @@ def identify(spec, out=None, progress=None) -> dict:
                 "std_error": float(est.std_error[k]),
                 "std_error_classical": float(est.std_error_classical[k]),
                 "std_error_sandwich": float(est.std_error_sandwich[k]),
+                "std_error_catalogue": float(est.std_error_catalogue[k])
+                if est.std_error_catalogue is not None
+                else 0.0,
                 "consistent_value": float(est.beta_consistent[k]),
             }
             for k, text in enumerate(base.describe())
@@ -172,6 +190,56 @@ def identify(spec, out=None, progress=None) -> dict:
 
         write(result, Path(out))
     return result
+
+
+# Draws of the unidentified combinations (unidentified_spread), seeded.
+SPREAD_DRAWS = 10
+SPREAD_SEED = 7
+
+
+def unidentified_spread(est, eq, base, logs, regressor, spec, lever_at, loaded) -> np.ndarray:
+    """Per base parameter, the standard deviation of its weighted least squares over
+    SPREAD_DRAWS draws of the links' combinations the torques cannot see (the null space of the
+    base parameters), each parameter moved by up to ``spec.catalogue_uncertainty`` of its size
+    (uniform; halved where that is no physical body), at which the lever loads L of the dry
+    friction are computed again.
+
+    The joint reactions, and so L, depend on combinations no joint torque shows (a link's mass
+    folded into the link before it, its inertia about axes its joint does not turn): they stand
+    at the catalogue's values, whose error reaches μ_k·L as an error of μ_k (the product is what
+    the torques identify). A draw whose links are not a physical body is left out."""
+    from .consistent import scales
+
+    inertial = eq.inertial
+    rng = np.random.default_rng(SPREAD_SEED)
+    s = scales(est.theta[:inertial], 0)
+    Bi = base.matrix()[:, :inertial] * s
+    null = np.eye(inertial) - np.linalg.pinv(Bi) @ Bi
+    w = np.ones(len(eq.b))
+    for i, sigma in est.sigma.items():
+        w[eq.joint == i] = 1.0 / sigma
+    betas = []
+    for _ in range(4 * SPREAD_DRAWS):
+        if len(betas) == SPREAD_DRAWS:
+            break
+        move = s * (null @ (spec.catalogue_uncertainty * rng.uniform(-1.0, 1.0, inertial)))
+        # A link the consistent fit left at the edge of the physical (the pseudo-inertia's
+        # eigenvalue near 0) turns unphysical under most moves: the move is halved until the
+        # links are bodies again, at most four times.
+        for _ in range(5):
+            pi = est.theta[:inertial] + move
+            if min(pseudo_inertia_eigenvalues(pi)) > 0:
+                break
+            move = 0.5 * move
+        else:
+            continue
+        motions = [with_lever_load(m, lever_at(pi)) for m in logs]
+        drawn = equations(motions, regressor, spec.friction, spec.armature, loaded=loaded)
+        Ab = drawn.A[:, base.independent] * w[:, None]
+        betas.append(np.linalg.lstsq(Ab, drawn.b * w, rcond=None)[0])
+    if len(betas) < 2:
+        return np.zeros(base.count)
+    return np.std(np.array(betas), axis=0, ddof=1)
 
 
 def model_settings(names, theta, unzipdir) -> tuple:

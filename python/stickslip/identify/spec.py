@@ -19,6 +19,9 @@
                                          # "coulomb" or "viscous+coulomb"
     armature = true                      # each joint's reflected rotor inertia on its own q̈
     prior = 1e-4                         # the catalogue values' weight where the data cannot tell
+    catalogue_uncertainty = 0.3          # how far off the catalogue's links may be (relative): sets
+                                         # what the combinations the torques cannot see add to the
+                                         # uncertainty of μ_k through its loads
     derivatives = "auto"                 # the derivative filter (as in fit SPECs)
 
 Every problem is an :class:`IdentifySpecError` naming the field; the command prints it as one
@@ -39,7 +42,13 @@ from ..fit.spec import FitSpecError, _filter, _read_csv, _unknown
 TOP_KEYS = ("fmu", "experiment", "heldout", "identify")
 EXPERIMENT_KEYS = ("name", "data", "time", "positions", "torques")
 FRICTION = ("none", "viscous", "coulomb", "viscous+coulomb")
-IDENTIFY_DEFAULTS = {"friction": "viscous+coulomb", "armature": True, "prior": 1e-4, "derivatives": "auto"}
+IDENTIFY_DEFAULTS = {
+    "friction": "viscous+coulomb",
+    "armature": True,
+    "prior": 1e-4,
+    "catalogue_uncertainty": 0.3,
+    "derivatives": "auto",
+}
 
 
 class IdentifySpecError(FitSpecError):
@@ -67,6 +76,7 @@ class IdentifySpec:
     armature: bool
     prior: float
     derivatives: object  # a fit.filtering.Filter
+    catalogue_uncertainty: float = 0.3
 
 
 def load(spec, base_dir=None) -> IdentifySpec:
@@ -118,6 +128,11 @@ def _checked(doc: dict, source: str, base: Path) -> IdentifySpec:
     prior = options["prior"]
     if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not (0.0 < prior < 1.0):
         raise IdentifySpecError(f"{source}: identify.prior = {prior!r}: a number in (0, 1), e.g. 1e-4")
+    spread = options["catalogue_uncertainty"]
+    if isinstance(spread, bool) or not isinstance(spread, (int, float)) or not (0.0 <= spread <= 1.0):
+        raise IdentifySpecError(
+            f"{source}: identify.catalogue_uncertainty = {spread!r}: a relative error in [0, 1], e.g. 0.3"
+        )
     try:
         flt = _filter(options["derivatives"], f"{source}: identify.derivatives")
     except FitSpecError as e:
@@ -134,7 +149,16 @@ def _checked(doc: dict, source: str, base: Path) -> IdentifySpec:
     if len(set(names)) != len(names):
         raise IdentifySpecError(f"{source}: two runs share a name: {sorted({x for x in names if names.count(x) > 1})}")
     return IdentifySpec(
-        source, fmu, n, logs["experiment"], logs["heldout"], options["friction"], options["armature"], float(prior), flt
+        source,
+        fmu,
+        n,
+        logs["experiment"],
+        logs["heldout"],
+        options["friction"],
+        options["armature"],
+        float(prior),
+        flt,
+        float(spread),
     )
 
 
