@@ -23,6 +23,9 @@
 #   7c. stickslip fit examples/calibration_motor/calibration.toml --out results/calibration_motor
 #       and its three held-out runs replayed (stickslip simulate --spec .../heldout.toml --fitted
 #       ... --horizon 0.25 --out results/calibration_motor/heldout): the torque-logged motor arm
+#   7d. stickslip identify examples/identification/identify.toml --out results/identification, and
+#       the identified model's FMU (scripts/build_fmu.sh --model .../identified.toml): a real arm's
+#       links and friction from its torque logs
 #
 # Each stage prints its wall time; the README's table gives them as measured on a fresh
 # 2-core machine. Output directory: $RESULTS_DIR (default <repo>/results). Extra arguments
@@ -152,6 +155,15 @@ banner "stickslip fit examples/calibration_motor/calibration.toml -> $RESULTS_DI
 stickslip fit examples/calibration_motor/calibration.toml --out "$RESULTS_DIR/calibration_motor"
 stickslip simulate --spec examples/calibration_motor/heldout.toml \
     --fitted "$RESULTS_DIR/calibration_motor/fitted.toml" --horizon 0.25 --out "$RESULTS_DIR/calibration_motor/heldout"
+
+# A real arm's model from its torque logs (docs/calibration.md#real-arms): the KUKA iiwa whose
+# catalogue URDF has its links up to 30 % off; the identified model file and URDF, its FMU, and
+# the held-out runs' torques predicted (examples/identification/make_data.py made the logs).
+banner "stickslip identify examples/identification/identify.toml -> $RESULTS_DIR/identification"
+bash scripts/build_fmu.sh --model examples/identification/catalogue.toml --out "$ROOT/target/fmu/iiwa_catalogue.fmu"
+stickslip identify examples/identification/identify.toml --out "$RESULTS_DIR/identification"
+bash scripts/build_fmu.sh --model "$RESULTS_DIR/identification/identified.toml" \
+    --out "$RESULTS_DIR/identification/identified.fmu"
 
 banner "done"
 echo "main.sh: $SECONDS s in all (set-up by scripts/env.sh included)"
