@@ -165,23 +165,32 @@ def library_path(unzipdir) -> Path:
     return path
 
 
-@functools.cache
-def _engine(path: str):
-    """The export of the library at ``path``, with its C signature."""
+def export(path: str, name: str, argtypes: list, what: str):
+    """The function ``name`` beyond FMI of the FMU library at ``path`` with its C signature
+    (``argtypes``, returning int), or :class:`StageUnavailable` saying why not: a library that
+    does not load here, or one built before ``what`` was exported."""
     try:
         library = ctypes.CDLL(path)
     except OSError as e:
         raise StageUnavailable(f"{path} does not load on this machine ({platform.machine()}): {e}") from e
     try:
-        function = getattr(library, EXPORT)
+        function = getattr(library, name)
     except AttributeError:
         raise StageUnavailable(
-            f"{Path(path).name} has no {EXPORT}: the FMU was built before the engine's inverse dynamics were "
-            "exported; rebuild it with this version (bash scripts/build_fmu.sh, or package_fmu)"
+            f"{Path(path).name} has no {name}: the FMU was built before {what}; rebuild it with this version "
+            "(bash scripts/build_fmu.sh, or package_fmu)"
         ) from None
+    function.argtypes = argtypes
+    function.restype = ctypes.c_int
+    return function
+
+
+@functools.cache
+def _engine(path: str):
+    """The inverse-dynamics export of the library at ``path``."""
     double_p = ctypes.POINTER(ctypes.c_double)
     size = ctypes.c_size_t
-    function.argtypes = [
+    argtypes = [
         ctypes.c_char_p,  # model: resources/model.toml
         ctypes.c_char_p,  # urdf: the URDF it names, or NULL
         ctypes.POINTER(ctypes.c_char_p),  # settings "m[3]=8.0", ...
@@ -195,8 +204,7 @@ def _engine(path: str):
         ctypes.c_char_p,  # message buffer
         size,
     ]
-    function.restype = ctypes.c_int
-    return function
+    return export(path, EXPORT, argtypes, "the engine's inverse dynamics were exported")
 
 
 def _model_source(unzipdir) -> tuple:

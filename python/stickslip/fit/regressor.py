@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import ctypes
 import functools
-from pathlib import Path
 
 import numpy as np
 
-from .idim import InverseDynamicsError, StageUnavailable, _model_source, library_path
+from .idim import InverseDynamicsError, _model_source, export, library_path
 
 EXPORT = "stickslip_joint_torque_regressor"  # the FMU library's function beyond FMI 2.0
 # A link's standard parameters, in the engine's (and Pinocchio's) order.
@@ -38,20 +37,9 @@ def parameter_names(n: int) -> list:
 @functools.cache
 def _engine(path: str):
     """The export of the library at ``path``, with its C signature."""
-    try:
-        library = ctypes.CDLL(path)
-    except OSError as e:
-        raise StageUnavailable(f"{path} does not load on this machine: {e}") from e
-    try:
-        function = getattr(library, EXPORT)
-    except AttributeError:
-        raise StageUnavailable(
-            f"{Path(path).name} has no {EXPORT}: the FMU was built before the engine's joint-torque regressor was "
-            "exported; rebuild it with this version (bash scripts/build_fmu.sh, or package_fmu)"
-        ) from None
     double_p = ctypes.POINTER(ctypes.c_double)
     size = ctypes.c_size_t
-    function.argtypes = [
+    argtypes = [
         ctypes.c_char_p,  # model: resources/model.toml
         ctypes.c_char_p,  # urdf: the URDF it names, or NULL
         ctypes.POINTER(ctypes.c_char_p),  # settings "m[3]=8.0", ...
@@ -66,8 +54,7 @@ def _engine(path: str):
         ctypes.c_char_p,  # message buffer
         size,
     ]
-    function.restype = ctypes.c_int
-    return function
+    return export(path, EXPORT, argtypes, "the engine's joint-torque regressor was exported")
 
 
 def joint_torque_regressor(unzipdir, states, settings=()) -> tuple:

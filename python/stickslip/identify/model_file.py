@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fit.idim import InverseDynamicsError, StageUnavailable, _model_source, library_path
+from ..fit.idim import InverseDynamicsError, _model_source, export, library_path
 
 EXPORT = "stickslip_write_model"  # the FMU library's function beyond FMI 2.0
 
@@ -35,19 +35,8 @@ EXPORT = "stickslip_write_model"  # the FMU library's function beyond FMI 2.0
 @functools.cache
 def _engine(path: str):
     """The export of the library at ``path``, with its C signature."""
-    try:
-        library = ctypes.CDLL(path)
-    except OSError as e:
-        raise StageUnavailable(f"{path} does not load on this machine: {e}") from e
-    try:
-        function = getattr(library, EXPORT)
-    except AttributeError:
-        raise StageUnavailable(
-            f"{Path(path).name} has no {EXPORT}: the FMU was built before the engine wrote model files; rebuild "
-            "it with this version (bash scripts/build_fmu.sh, or package_fmu)"
-        ) from None
     size = ctypes.c_size_t
-    function.argtypes = [
+    argtypes = [
         ctypes.c_char_p,  # model: resources/model.toml
         ctypes.c_char_p,  # urdf: the URDF it names, or NULL
         ctypes.POINTER(ctypes.c_char_p),  # settings "mu_k[1]=0.03", ...
@@ -64,8 +53,7 @@ def _engine(path: str):
         ctypes.c_char_p,  # message buffer
         size,
     ]
-    function.restype = ctypes.c_int
-    return function
+    return export(path, EXPORT, argtypes, "the engine wrote model files")
 
 
 def model_texts(unzipdir, pi=None, settings=(), urdf_file_name: str = "identified.urdf") -> tuple:
