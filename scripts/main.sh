@@ -87,7 +87,7 @@ urdf_arm() {  # name: models/urdf/<name>/<name>.toml driven by examples/motions/
     # The binaries are the ones just built: cargo and the cross-builds have nothing to do.
     bash scripts/build_fmu.sh --model "$model" --out "$fmu" || urdf_failed "$name" "building its FMU ($model)" $?
     local start
-    start=$(python scripts/urdf_static_start.py --model "$model" --fmu "$fmu" --motion "$motion") \
+    start=$(python scripts/urdf_static_start.py --fmu "$fmu" --motion "$motion") \
         || urdf_failed "$name" "static start values (scripts/urdf_static_start.py)" $?
     local args=() a b
     while read -r a b; do [ -n "$a" ] && args+=("$a" "$b"); done <<<"$start"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Start values that put an arm's flexible joints in static equilibrium at a motion's start.
 
-Usage:  python scripts/urdf_static_start.py --model ARM.toml --fmu ARM.fmu --motion MOTION.toml
+Usage:  python scripts/urdf_static_start.py --fmu ARM.fmu --motion MOTION.toml
 
 Without start values the FMU starts every flexible joint at q = q* with its drive spring
 relaxed (`use_start_values = false`); an arm whose start pose loads a joint with gravity
@@ -9,7 +9,7 @@ then drops into its spring at t = 0 and rings at the drive's natural frequency, 
 would be mistaken for the motion's own dynamics. This script computes, for the motion
 file's q*(0), the coordinates where each flexible drive's spring holds the gravity load,
 k_i (q*_i - q_i) = tau_i(q) (tau = the generalized gravity force at rest, from the
-engine's own `inverse_dynamics` binary on the model file), by fixed-point iteration
+engine's inverse dynamics in the FMU's own binary, on the model it carries), by fixed-point iteration
 (converged to 1e-15 rad in a few rounds: the lag is ~1e-3 rad), and prints them as
 `stickslip simulate` options, one per line:
 
@@ -22,10 +22,7 @@ the lag grows by Delta_i (a joint without gravity load, |tau_i| < 1e-9, starts a
 """
 
 import argparse
-import csv
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -40,35 +37,30 @@ def fmu_parameters(md):
     return values, fmu_joints(md)[0]
 
 
-def gravity_torques(binary, model, q):
-    """tau(q) at rest, from `inverse_dynamics`."""
+def gravity_torques(unzipdir, q):
+    """tau(q) at rest, by the engine in the unpacked FMU's binary (stickslip.fit.idim)."""
+    from stickslip.fit.idim import InverseDynamicsError, StageUnavailable, inverse_dynamics
+
     n = len(q)
-    with tempfile.TemporaryDirectory(prefix="static_start_") as d:
-        states, out = Path(d) / "states.csv", Path(d) / "tau.csv"
-        header = [f"{b}[{i}]" for b in ("q", "qd", "qdd") for i in range(1, n + 1)]
-        states.write_text(",".join(header) + "\n" + ",".join(repr(x) for x in list(q) + [0.0] * 2 * n) + "\n")
-        run = subprocess.run(
-            [str(binary), "--model", str(model), "--states", str(states), "--out", str(out)],
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        if run.returncode != 0:
-            raise SystemExit(f"urdf_static_start: {binary} failed (exit {run.returncode}): {run.stderr.strip()}")
-        with open(out, newline="") as f:
-            row = next(csv.DictReader(f))
-    return [float(row[f"tau[{i}]"]) for i in range(1, n + 1)]
+    try:
+        tau, _ = inverse_dynamics(unzipdir, [list(q) + [0.0] * 2 * n])
+    except (InverseDynamicsError, StageUnavailable) as e:
+        raise SystemExit(f"urdf_static_start: {e}") from None
+    return [float(x) for x in tau[0]]
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", required=True, type=Path, help="the arm's model file")
-    ap.add_argument("--fmu", required=True, type=Path, help="the arm's FMU (drive parameters, number of joints)")
+    ap.add_argument("--fmu", required=True, type=Path, help="the arm's FMU (its model, drive parameters, joints)")
     ap.add_argument("--motion", required=True, type=Path, help="the motion file whose q*(0) is the start pose")
-    ap.add_argument("--binary", type=Path, default=ROOT / "target" / "release" / "inverse_dynamics")
     args = ap.parse_args(argv)
 
     from fmpy import read_model_description
 
+    from stickslip.fmu import content_hash, unpacked
+
+    data = args.fmu.read_bytes()
+    unzipdir = unpacked(data, content_hash(data))
     md = read_model_description(str(args.fmu))
     params, n = fmu_parameters(md)
     flexible = [i for i in range(1, n + 1) if f"k[{i}]" in params]
@@ -79,7 +71,7 @@ def main(argv=None):
         return 2
     q = list(q_star)
     for _ in range(50):
-        tau = gravity_torques(args.binary, args.model, q)
+        tau = gravity_torques(unzipdir, q)
         new = list(q_star)
         for i in flexible:
             if abs(tau[i - 1]) < 1e-9:
@@ -92,7 +84,7 @@ def main(argv=None):
         if change < 1e-15:
             break
     else:
-        raise SystemExit(f"urdf_static_start: no static equilibrium found for {args.model} (last change {change:.1e})")
+        raise SystemExit(f"urdf_static_start: no static equilibrium found for {args.fmu} (last change {change:.1e})")
     print("--set use_start_values=true")
     for i in flexible:
         print(f"--set q_start[{i}]={q[i - 1]!r}")
