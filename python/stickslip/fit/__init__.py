@@ -316,7 +316,7 @@ def _equation_error_result(spec, problem, theta: dict, errors: dict, notes: list
             "at_bound": at_bound,
             "scale": e.scale,
         }
-        if raw[e.name] != v:
+        if not e.low <= raw[e.name] <= e.high:
             warnings.append(
                 f"{e.name}: the equation-error estimate {raw[e.name]:.6g} lies outside its bounds [{e.low:g}, "
                 f"{e.high:g}]; reported, replayed and written to fitted.toml at {v:.6g}, where its standard error "
