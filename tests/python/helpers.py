@@ -342,3 +342,17 @@ def assert_close_signals(actual: dict, expected: dict, names, rel: float = 1e-12
 
 def bit_identical(actual: dict, expected: dict, names) -> bool:
     return all(np.array_equal(np.asarray(actual[n], float), np.asarray(expected[n], float)) for n in names)
+
+
+def binomial_tail(n: int, p: float, k: int) -> float:
+    """P(X >= k) for X ~ Binomial(n, p): sum_{i=k}^{n} C(n, i) p^i (1 - p)^(n - i)."""
+    import math
+
+    return sum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in range(k, n + 1))
+
+
+def allowed_misses(n: int, p: float, alpha: float = 1e-3) -> int:
+    """The most misses of n a coverage test may allow so that, where each pair misses with
+    probability p, it fails in fewer than ``alpha`` of its runs: the largest m with
+    P(X >= m + 1) < alpha (the statistical tests' sizing, issue 41)."""
+    return next(k for k in range(n + 2) if binomial_tail(n, p, k) < alpha) - 1

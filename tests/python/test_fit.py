@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import fit_cases as fc
-from helpers import require_fmu
+from helpers import allowed_misses, require_fmu
 from sweep_cluster import STICKSLIP
 
 # The measurement's own integration: tight enough to stand for the exact solution.
@@ -93,7 +93,14 @@ def _check_coverage(names, values, errors, results):
         f"all at once in {int(inside.all(axis=1).sum())}; std(estimates)/mean(SE) {np.round(spread, 3).tolist()}; "
         f"(estimate - truth)/SE {np.round((values - truth) / errors, 2).tolist()}"
     )
-    assert np.all(inside.mean(axis=0) >= 0.9), inside.mean(axis=0)
+    # Sized (issue 41): each of the 20 seeds' pairs may miss with p = 0.05 (an asymptotic
+    # standard error's allowance, 18 times the normal 0.0027); allowed_misses(20, 0.05) = 5, a
+    # false failure P(X >= 6 | 20, 0.05) = 3.3e-4. An estimator 2.5 SE off fails it.
+    allowed = allowed_misses(len(values), 0.05)
+    misses = (~inside).sum(axis=0)
+    assert np.all(misses <= allowed), (misses, allowed)
+    biased = np.abs(values + 2.5 * errors - truth) <= 3.0 * errors
+    assert np.all((~biased).sum(axis=0) > allowed), "the planted bias went unseen"
     assert np.all((spread >= 0.5) & (spread <= 2.0)), spread
     for r in results:
         assert r["converged"]
@@ -106,7 +113,8 @@ def test_standard_errors_hold_up_under_20_noise_seeds(tmp_path):
     """The encoders' noise of the issue (2e-6 rad on q[1], 1e-6 m on q[3]), 20 seeds, 0.5 s,
     μ_k[1] and k[3] fitted from the truth (single shooting: the start is in the basin) at the
     FMU's default error_tolerance while the measurement was integrated at 1e-8: each
-    parameter's truth lies within 3 reported standard errors in at least 18 of the 20, and
+    parameter's truth lies within 3 reported standard errors in at least 15 of the 20 (sized
+    in _check_coverage: a false failure in 3.3e-4 of runs; moved 2.5 SE it fails), and
     the estimates scatter as the standard errors say (std over the seeds / mean SE in [0.5,
     2]); no identifiability warning (the pair is well determined). Measured: 19 and 20 of 20,
     ratios 1.21 and 1.17."""

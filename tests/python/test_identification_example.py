@@ -4,7 +4,8 @@ the documented commands, against make_data.py's truth (the SPEC does not know it
 * the committed logs are what make_data.py makes, byte for byte (slow: two FMUs built);
 * over three noise draws of the same true runs, the base parameters' truth (the true arm's
   links through the base parameters' combinations, its μ_k and b_v) lies within 3 standard
-  errors in at least 90 % of (draw, parameter) pairs; every link of every identified model is a
+  errors in all but at most 18 of the 171 (draw, parameter) pairs (≥ 89.5 %; a false failure
+  P(X >= 19 | 171, 0.05) = 1.0e-3), and 2.5 SE off fails it; every link of every identified model is a
   physical body; the held-out runs' torques are predicted within 5 % relative rms on every
   joint, better than the catalogue model and the per-joint model (slow);
 * ``stickslip identify`` on the committed SPEC writes a model file from which
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ROOT
+from helpers import ROOT, allowed_misses
 from sweep_cluster import STICKSLIP
 
 EXAMPLE = ROOT / "examples" / "identification"
@@ -92,7 +93,7 @@ def test_the_truth_lies_within_3_standard_errors_and_held_out_torques_are_predic
     md, runs, truth_fmu = clean
     spec = tomllib.loads((EXAMPLE / "identify.toml").read_text())
     spec["fmu"] = str(catalogue_fmu)
-    covered = total = 0
+    covered = biased_covered = total = 0
     for draw in range(3):
         where = tmp_path / f"draw{draw}"
         where.mkdir()
@@ -105,6 +106,7 @@ def test_the_truth_lies_within_3_standard_errors_and_held_out_torques_are_predic
         worst = int(np.argmax(np.abs(z)))
         print(f"draw {draw}: max |z| {abs(z[worst]):.2f} ({est.base.describe()[worst]}), warnings {result['warnings']}")
         covered += int(np.sum(np.abs(z) <= 3.0))
+        biased_covered += int(np.sum(np.abs(z + 2.5) <= 3.0))
         total += len(z)
         assert min(result["pseudo_inertia_min_eigenvalue"]) > 0
         for run, rows in result["validation"].items():
@@ -113,7 +115,11 @@ def test_the_truth_lies_within_3_standard_errors_and_held_out_torques_are_predic
                 assert row["identified"] < 0.05, (run, i, row)
                 assert row["identified"] < row["catalogue"] and row["identified"] < row["per joint"], (run, i, row)
     print(f"covered {covered} of {total}")
-    assert covered >= 0.9 * total
+    # sized (issue 41): a pair may miss with p = 0.05; allowed_misses(171, 0.05) = 18, a false
+    # failure P(X >= 19 | 171, 0.05) = 1.0e-3 (pairs of one draw share its data: the bound is
+    # for independent pairs); the same estimates moved by 2.5 SE fail it
+    assert total - covered <= allowed_misses(total, 0.05)
+    assert total - biased_covered > allowed_misses(total, 0.05), "the planted bias went unseen"
 
 
 def spec_for(spec: dict, where: Path) -> dict:

@@ -6,8 +6,9 @@ estimator takes any regressor; the engine's is checked against Pinocchio's elsew
   physically consistent body still); friction b_v, τ_c and armature I_a per joint;
 * the torques: τ = Y π + b_v q̇ + τ_c sgn q̇ + I_a q̈ at a sum-of-sines motion, plus white noise
   of 1 % of each joint's torque range, positions rounded to a 20-bit encoder's count;
-* the base parameters' truth lies within 3 standard errors of the weighted least squares in at
-  least 90 % of (draw, parameter) pairs over three noise draws;
+* the base parameters' truth lies within 3 standard errors of the weighted least squares in all
+  but at most 20 of the 186 (draw, parameter) pairs over three noise draws (P(X >= 21 | 186,
+  0.05) = 4.5e-4), and the same estimates moved by 2.5 SE fail that;
 * the consistent model: every link's pseudo-inertia positive definite, friction and armature
   nonnegative, its base parameters within 3 SE of the unconstrained ones (no warning), and a
   held-out motion's torques predicted within 3 % relative rms per joint (the catalogue model:
@@ -21,7 +22,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers import ROOT
+from helpers import ROOT, allowed_misses
 
 pin = pytest.importorskip("pinocchio")
 pytest.importorskip("cvxpy")
@@ -120,7 +121,7 @@ def test_the_base_parameters_are_covered_and_the_consistent_model_is_physical_an
     catalogue = _perturbed(truth, rng)
     friction = (rng.uniform(0.5, 2.0, n), rng.uniform(0.5, 3.0, n), rng.uniform(0.05, 0.5, n))
     theta_true = np.concatenate([_pi(truth), np.column_stack(friction).ravel()])
-    covered, total = 0, 0
+    covered, biased_covered, total = 0, 0, 0
     for draw in range(3):
         eq, base, est = _identify(truth, catalogue, friction, noise_seed=100 * draw)
         beta_true = base.of(theta_true)
@@ -129,6 +130,7 @@ def test_the_base_parameters_are_covered_and_the_consistent_model_is_physical_an
             f"draw {draw}: {base.count} base parameters, max |z| {np.max(np.abs(z)):.2f}, condition {est.condition:.3g}"
         )
         covered += int(np.sum(np.abs(z) <= 3.0))
+        biased_covered += int(np.sum(np.abs(z + 2.5) <= 3.0))
         total += base.count
         from stickslip.identify.consistent import pseudo_inertia_eigenvalues
 
@@ -136,7 +138,10 @@ def test_the_base_parameters_are_covered_and_the_consistent_model_is_physical_an
         assert np.all(est.theta[eq.inertial :] >= -1e-9)
         assert not [w for w in est.warnings if "physically consistent" in w], est.warnings
     print(f"covered {covered} of {total}")
-    assert covered >= 0.9 * total
+    # sized (issue 41): a pair may miss with p = 0.05; allowed_misses(186, 0.05) = 20, a false
+    # failure P(X >= 21 | 186, 0.05) = 4.5e-4; the same estimates moved by 2.5 SE fail it
+    assert total - covered <= allowed_misses(total, 0.05)
+    assert total - biased_covered > allowed_misses(total, 0.05), "the planted bias went unseen"
     # held-out: a motion neither fit saw, its torques predicted
     log = _log(truth, _regressor(truth), friction, 10.0, seed=9, noise_seed=999)
     from stickslip.fit.filtering import default_filter
