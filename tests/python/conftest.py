@@ -1,10 +1,11 @@
 """pytest configuration for tests/python, and the one fixture several modules share: ``cluster``,
 a loopback Dask cluster per module (the sweep tests: test_sweep_cluster.py, test_convergence.py).
 
-Marker ``slow``: long-running tests (e.g. full reference simulations through the
-FMU). They are *deselected* by default, so ``scripts/test.sh`` / CI stays fast.
-Run them with ``pytest --runslow`` or ``RUN_SLOW=1 pytest``; run only them with
-``pytest -m slow --runslow`` (what ``scripts/main.sh`` does).
+Marker ``slow``: long-running tests (e.g. full reference simulations through the FMU, the
+statistical checks of the fit and the identification). A plain ``pytest`` deselects them; run
+them with ``pytest --runslow`` or ``RUN_SLOW=1 pytest``, only them with ``pytest -m slow
+--runslow``. ``scripts/test.sh`` (CI) runs every test with ``--runslow``; ``--quick`` leaves
+the slow ones out.
 
 Marker ``full``: tests CI runs but the inner loop (``scripts/test.sh --quick``, which
 deselects them with ``-m "not full"``) leaves out: those that need the win64 or darwin64

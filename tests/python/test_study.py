@@ -11,7 +11,7 @@ case runs twice:
   differ by up to a few % (1 ms samples miss vibration peaks), the stick-phase counts by at
   most 1 (the clearance case's joint 3). Stick counts come from the FMU's cumulative
   ``n_stick``, so the coarse communication interval loses no phase.
-* ``full`` (``@pytest.mark.slow``, run by scripts/main.sh): error control, interval 1e-4 s;
+* ``full`` (``@pytest.mark.slow``, run by scripts/test.sh with --runslow): error control, interval 1e-4 s;
   the step case at fixed 5e-5, 2e-5, 2e-6, 1e-6 s over 2 s.
 
 Runs that change the same parameters are done once per process (study.simulate): the
