@@ -95,11 +95,13 @@ def _check_coverage(names, values, errors, results):
     )
     # Sized (issue 41): each of the 20 seeds' pairs may miss with p = 0.05 (an asymptotic
     # standard error's allowance, 18 times the normal 0.0027); allowed_misses(20, 0.05) = 5, a
-    # false failure P(X >= 6 | 20, 0.05) = 3.3e-4. An estimator 2.5 SE off fails it.
+    # false failure P(X >= 6 | 20, 0.05) = 3.3e-4. With 20 pairs it sees an estimator 4 SE off
+    # (misses with p = 0.84: fails with P(X >= 6 | 20, 0.84) > 0.9999), not reliably one 2.5 SE
+    # off (p = 0.31: 0.6); the 45-pair benchmark and the identification's 171 pairs see that.
     allowed = allowed_misses(len(values), 0.05)
     misses = (~inside).sum(axis=0)
     assert np.all(misses <= allowed), (misses, allowed)
-    biased = np.abs(values + 2.5 * errors - truth) <= 3.0 * errors
+    biased = np.abs(values + 4.0 * errors - truth) <= 3.0 * errors
     assert np.all((~biased).sum(axis=0) > allowed), "the planted bias went unseen"
     assert np.all((spread >= 0.5) & (spread <= 2.0)), spread
     for r in results:
@@ -114,7 +116,7 @@ def test_standard_errors_hold_up_under_20_noise_seeds(tmp_path):
     μ_k[1] and k[3] fitted from the truth (single shooting: the start is in the basin) at the
     FMU's default error_tolerance while the measurement was integrated at 1e-8: each
     parameter's truth lies within 3 reported standard errors in at least 15 of the 20 (sized
-    in _check_coverage: a false failure in 3.3e-4 of runs; moved 2.5 SE it fails), and
+    in _check_coverage: a false failure in 3.3e-4 of runs; moved 4 SE it fails), and
     the estimates scatter as the standard errors say (std over the seeds / mean SE in [0.5,
     2]); no identifiability warning (the pair is well determined). Measured: 19 and 20 of 20,
     ratios 1.21 and 1.17."""

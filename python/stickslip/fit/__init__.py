@@ -167,7 +167,9 @@ def fit(
                 why = f"the uncertainty of the best start failed: {type(e).__name__}: {' '.join(str(e).split())}"
                 _give_up(spec, out, why, results, problem, notes, evaluator, t0, best, traceback.format_exc())
             lower = result["_internal"]["lower"]
-            if lower is None or attempt == FROM_LOWER:
+            # A start the evaluation budget stopped ([options] max_evaluations) is not gone on from:
+            # the user's budget holds; its answer is reported as not a minimum.
+            if lower is None or attempt == FROM_LOWER or best.status != "converged":
                 break
             # Not a minimum along a profile: single shooting goes on from the lower point, at the
             # answer's error tolerance.

@@ -189,6 +189,7 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     refused = [r for r in at_start if r.status == "refused"]
     if refused:
         # Not a point of the model: the optimizer would only walk the penalty's plateau.
+        problem.residual(at_start)  # the refusal counted in failed_runs, with the FMU's reason
         start.status = "dropped"
         start.message = f"the FMU refuses its parameters: {' '.join(refused[0].message.split())}"
         say(f"fit: start {start.origin!r} dropped: {start.message}")
