@@ -43,9 +43,12 @@ def test_savitzky_golay_reproduces_a_cubic(dt, table):
 
     t = np.arange(0.0, 1.0 + dt / 2, dt)
     flt = parse(table, "derivatives")
-    for got, want in zip(derivatives(t, _cubic(t)[0], flt), _cubic(t), strict=True):
+    # Exact but for rounding: the acceleration's coefficients grow as 1/dt², so its rounding is
+    # about eps·|y|·Σ|c| ≈ 1e-16 · 1e7 = 1e-9 of it at dt = 1 ms (measured 1.3e-9 on one machine,
+    # below 1e-9 on another); the value's and the rate's stay below 1e-12.
+    for order, (got, want) in enumerate(zip(derivatives(t, _cubic(t)[0], flt), _cubic(t), strict=True)):
         error = float(np.max(np.abs(got - want)) / np.max(np.abs(want)))
-        assert error < 1e-9, (table, dt, error)
+        assert error < (1e-9, 1e-9, 1e-8)[order], (table, dt, order, error)
     # Several channels at once: each as alone.
     both = derivatives(t, np.column_stack([_cubic(t)[0], -2.0 * _cubic(t)[0]]), flt)
     for got, want in zip(both, _cubic(t), strict=True):
