@@ -108,14 +108,15 @@ STRIPPED="$TARGET_DIR/fmu/stripped"
 mkdir -p "$STRIPPED"
 
 # The interface of a binary is the FMU's: the 34 fmi2 functions of FMI 2.0
-# and the three functions beyond FMI, stickslip_inverse_dynamics,
-# stickslip_joint_torque_regressor and stickslip_write_model, or the 75 fmi3
+# and the four functions beyond FMI, stickslip_inverse_dynamics,
+# stickslip_joint_torque_regressor, stickslip_run_experiment and
+# stickslip_write_model, or the 75 fmi3
 # functions of FMI 3.0,
 # nothing else.
 # check_exports FILE [fmi3] < exported names
 check_exports() {
     local symbols count extra version="${2:-fmi2}" want=34
-    local beyond="stickslip_inverse_dynamics stickslip_joint_torque_regressor stickslip_write_model"
+    local beyond="stickslip_inverse_dynamics stickslip_joint_torque_regressor stickslip_run_experiment stickslip_write_model"
     [ "$version" = fmi3 ] && want=75 beyond=""
     symbols=$(sort)
     count=$(printf '%s\n' "$symbols" | grep -c "^$version" || true)

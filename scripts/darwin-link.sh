@@ -9,9 +9,10 @@
 # Why not `zig cc` as linker too: zig's Mach-O linker ignores
 # `-exported_symbols_list` (every Rust symbol, some 2,200, stays exported),
 # which ld64.lld honours. What the link does beyond rustc's arguments:
-#   * the export list rustc writes is cut to the `_fmi2` functions and the three
+#   * the export list rustc writes is cut to the `_fmi2` functions and the four
 #     beyond FMI, `_stickslip_inverse_dynamics`,
-#     `_stickslip_joint_torque_regressor` and `_stickslip_write_model` (the FMI 3.0 library, an
+#     `_stickslip_joint_torque_regressor`, `_stickslip_run_experiment` and
+#     `_stickslip_write_model` (the FMI 3.0 library, an
 #     output named *fmi3*: the `_fmi3` ones only): rustc lists every
 #     `#[no_mangle]` function of every crate, so fmi-sys's `callback_log`
 #     would be exported too (mingw-link.sh does the same for win64);
@@ -57,7 +58,7 @@ done
 # The FMI version whose functions the library exports: the FMI 3.0 library
 # (crate fmi3/, libstick_slip_manipulator_fmi3.dylib) links the FMI 2.0
 # crate as an rlib, whose fmi2 functions rustc would list too.
-version=fmi2 keep="_fmi2|_stickslip_inverse_dynamics|_stickslip_joint_torque_regressor|_stickslip_write_model"
+version=fmi2 keep="_fmi2|_stickslip_inverse_dynamics|_stickslip_joint_torque_regressor|_stickslip_run_experiment|_stickslip_write_model"
 for ((i = 0; i + 1 < ${#flat[@]}; i++)); do
     if [ "${flat[$i]}" = -o ]; then
         case "$(basename "${flat[$((i + 1))]}")" in *fmi3*) version=fmi3 keep=_fmi3 ;; esac

@@ -1,12 +1,13 @@
 //! The 34 exported functions of FMI 2.0 (common + co-simulation). Each one
 //! names the life-cycle states that allow it and hands checked arguments to
-//! [`Instance`]. Beside them three functions beyond FMI, which an FMI master
+//! [`Instance`]. Beside them four functions beyond FMI, which an FMI master
 //! never calls: [`stickslip_inverse_dynamics`], the engine's inverse
 //! dynamics for the fit's equation-error stage,
 //! [`stickslip_joint_torque_regressor`], its joint-torque regressor and the
-//! model's standard inertial parameters, and [`stickslip_write_model`], the
-//! model with identified values written as a model file; nothing else is
-//! exported from the library.
+//! model's standard inertial parameters, [`stickslip_write_model`], the
+//! model with identified values written as a model file, and
+//! [`stickslip_run_experiment`], a whole experiment (and its parameter
+//! sensitivities) in one call; nothing else is exported from the library.
 //!
 //! Beyond FMI 2.0, which leaves the slave's behaviour there open,
 //! fmi2DoStep, fmi2SetReal, fmi2SetBoolean and fmi2SetRealInputDerivatives
@@ -22,6 +23,7 @@ use super::boundary::{
     with_instance, write_text,
 };
 use super::description::MODEL_IDENTIFIER;
+use super::experiment::{Experiment, Sensitivities};
 use super::instance::Instance;
 use super::lifecycle::{LifeCycle::*, States};
 use super::logger::{Category, Logger};
@@ -80,8 +82,8 @@ const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
 const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
 
 /// The names of the exported functions (the library's whole symbol table):
-/// the 34 of FMI 2.0, then the three beyond it.
-pub const EXPORTED_FUNCTIONS: [&str; 37] = [
+/// the 34 of FMI 2.0, then the four beyond it.
+pub const EXPORTED_FUNCTIONS: [&str; 38] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
     "fmi2SetDebugLogging",
@@ -119,6 +121,7 @@ pub const EXPORTED_FUNCTIONS: [&str; 37] = [
     "stickslip_inverse_dynamics",
     "stickslip_joint_torque_regressor",
     "stickslip_write_model",
+    "stickslip_run_experiment",
 ];
 
 // ---- functions without an instance ------------------------------------------------
@@ -1081,4 +1084,101 @@ unsafe fn finish(run: impl FnOnce() -> Result<(), Fault>, message: *mut c_char, 
         let _ = unsafe { write_text(message, message_size, &reason, "message") };
     });
     status
+}
+
+/// A whole experiment in one call (`super::experiment`): the FMI sequence a
+/// master would make from fmi2EnterInitializationMode on, with the inputs of
+/// every communication point given at once and the outputs of every point
+/// returned, bit for bit those of the per-point calls; and, with
+/// `n_sensitivities` > 0, their sensitivities to Real parameters or start
+/// values by internal numerical differentiation.
+///
+/// ```c
+/// fmi2Status stickslip_run_experiment(
+///     fmi2Component c,                                  /* instantiated, values set, not initialized */
+///     size_t n_points, const double *time,              /* communication points, increasing */
+///     size_t n_drive, const fmi2ValueReference *drive_vr, const double *drive,  /* points x n_drive */
+///     size_t n_torques, const fmi2ValueReference *torque_vr,
+///     const double *torque, const double *torque_rate, const double *torque_accel, /* points x n_torques */
+///     size_t n_outputs, const fmi2ValueReference *output_vr, double *outputs,    /* points x n_outputs */
+///     size_t n_sensitivities, const fmi2ValueReference *sensitivity_vr,
+///     const double *sensitivity_step, fmi2Boolean central, size_t threads,
+///     double *sensitivities,                            /* points x n_outputs x n_sensitivities */
+///     uint64_t *departures,                             /* per value: 0 where its column is exact */
+///     size_t *reached);                                 /* points whose outputs were written */
+/// ```
+///
+/// Allowed in the instantiated state only (after fmi2SetupExperiment and
+/// the values); it leaves the instance where the last step left it (step
+/// complete, step failed, or initialization mode when initialization
+/// failed), for fmi2Terminate, fmi2Reset or fmi2FreeInstance. A failure
+/// returns the status of the FMI call that failed, with its message logged,
+/// and the points before it written. Boolean outputs come as 0 or 1.
+///
+/// # Safety
+/// Pointers are null (with a zero count) or point to the counts of values
+/// given; `c` as for every FMI function.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn stickslip_run_experiment(
+    c: fmi2Component,
+    n_points: usize,
+    time: *const f64,
+    n_drive: usize,
+    drive_vr: *const fmi2ValueReference,
+    drive: *const f64,
+    n_torques: usize,
+    torque_vr: *const fmi2ValueReference,
+    torque: *const f64,
+    torque_rate: *const f64,
+    torque_accel: *const f64,
+    n_outputs: usize,
+    output_vr: *const fmi2ValueReference,
+    outputs: *mut f64,
+    n_sensitivities: usize,
+    sensitivity_vr: *const fmi2ValueReference,
+    sensitivity_step: *const f64,
+    central: fmi2Boolean,
+    threads: usize,
+    sensitivities: *mut f64,
+    departures: *mut u64,
+    reached: *mut usize,
+) -> fmi2Status {
+    const INSTANTIATED: States = States::of(&[Instantiated]);
+    unsafe {
+        with_instance(c, "stickslip_run_experiment", INSTANTIATED, |inst| {
+            let count = |a: usize, b: usize, what: &str| {
+                a.checked_mul(b).ok_or_else(|| Fault::error(format!("{what}: {a} x {b} values overflow")))
+            };
+            let torques = count(n_points, n_torques, "torque")?;
+            let e = Experiment {
+                time: slice(time, n_points, "time[]")?,
+                drive_vrs: slice(drive_vr, n_drive, "drive_vr[]")?,
+                drive: slice(drive, count(n_points, n_drive, "drive")?, "drive[]")?,
+                torque_vrs: slice(torque_vr, n_torques, "torque_vr[]")?,
+                torques: [
+                    slice(torque, torques, "torque[]")?,
+                    slice(torque_rate, torques, "torque_rate[]")?,
+                    slice(torque_accel, torques, "torque_accel[]")?,
+                ],
+                output_vrs: slice(output_vr, n_outputs, "output_vr[]")?,
+            };
+            let size = count(n_points, n_outputs, "outputs")?;
+            let values = slice_mut(outputs, size, "outputs[]")?;
+            let reached = out(reached, "reached")?;
+            let s = if n_sensitivities == 0 {
+                None
+            } else {
+                Some(Sensitivities {
+                    vrs: slice(sensitivity_vr, n_sensitivities, "sensitivity_vr[]")?,
+                    steps: slice(sensitivity_step, n_sensitivities, "sensitivity_step[]")?,
+                    central: central != 0,
+                    threads,
+                    out: slice_mut(sensitivities, count(size, n_sensitivities, "sensitivities")?, "sensitivities[]")?,
+                    departures: slice_mut(departures, n_sensitivities, "departures[]")?,
+                })
+            };
+            inst.run_experiment(&e, values, reached, s)
+        })
+    }
 }

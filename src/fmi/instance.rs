@@ -732,6 +732,68 @@ impl Instance {
             .filter(|q| matches!(q, Quantity::Parameter(..) | Quantity::Setting(_)))
     }
 
+    /// The variables of the FMU (the FMI 2.0 layout).
+    pub(crate) fn variables(&self) -> &[Variable] {
+        &self.variables
+    }
+
+    /// The engine.
+    pub(crate) fn simulator(&self) -> &Simulator {
+        &self.sim
+    }
+
+    /// The engine (for `super::experiment`, which records and replays its
+    /// sub-steps).
+    pub(crate) fn simulator_mut(&mut self) -> &mut Simulator {
+        &mut self.sim
+    }
+
+    /// A copy of this instance, values, life-cycle state and engine
+    /// included, that logs nothing.
+    pub(crate) fn silent_copy(&self) -> Instance {
+        Instance {
+            variables: self.variables.clone(),
+            model_hash: self.model_hash,
+            guid: self.guid.clone(),
+            base: self.base.clone(),
+            sim: self.sim.clone(),
+            lifecycle: self.lifecycle,
+            start_time: self.start_time,
+            stop_time: self.stop_time,
+            inputs: self.inputs.clone(),
+            torques: self.torques.clone(),
+            use_start_values: self.use_start_values,
+            q_start: self.q_start.clone(),
+            qd_start: self.qd_start.clone(),
+            theta_m_start: self.theta_m_start.clone(),
+            omega_m_start: self.omega_m_start.clone(),
+            static_start: self.static_start,
+            stale: self.stale,
+            ignored_derivatives_reported: self.ignored_derivatives_reported,
+            logger: Logger::silent(),
+        }
+    }
+
+    /// The current value of `vr`, a Real parameter or start value: what a
+    /// sensitivity may be taken with respect to.
+    pub(crate) fn sensitivity_variable(&self, vr: fmi2ValueReference) -> Result<(f64, &str), Fault> {
+        let v = self.variable(vr)?;
+        match (v.quantity, self.value(v.quantity)) {
+            (
+                Quantity::Parameter(..)
+                | Quantity::StartQ(_)
+                | Quantity::StartQd(_)
+                | Quantity::StartThetaM(_)
+                | Quantity::StartOmegaM(_),
+                Value::Real(x),
+            ) => Ok((x, &v.name)),
+            _ => Err(Fault::error(format!(
+                "`{}` is neither a Real parameter nor a start value: the outputs have no sensitivity to it",
+                v.name
+            ))),
+        }
+    }
+
     /// fmi2GetFMUstate: the serialized state.
     pub(crate) fn snapshot(&self) -> Vec<u8> {
         let parameters = self
@@ -902,20 +964,12 @@ impl Instance {
             + continue_within_reach(&mut self.torques, &held_torques, interval)
     }
 
-    /// The variables of the FMU (the FMI 2.0 layout).
-    pub(crate) fn variables(&self) -> &[Variable] {
-        &self.variables
-    }
 
     /// Where the instance is in the FMI 2.0 life cycle.
     pub(crate) fn lifecycle(&self) -> LifeCycle {
         self.lifecycle
     }
 
-    /// The engine.
-    pub(crate) fn simulator(&self) -> &Simulator {
-        &self.sim
-    }
 }
 
 #[cfg(all(test, feature = "fmi3"))]

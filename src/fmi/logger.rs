@@ -54,6 +54,9 @@ enum Sink {
     /// printf format).
     #[cfg(feature = "fmi3")]
     Fmi3 { callback: fmi3LogMessageCallback, environment: fmi3InstanceEnvironment },
+    /// Nowhere: the replays of a run's sensitivities, whose messages would
+    /// repeat the run's (see `super::experiment`).
+    Silent,
     /// Kept in memory, for the unit tests.
     #[cfg(test)]
     Memory(MemoryLog),
@@ -92,6 +95,11 @@ impl Logger {
         let mut enabled = [true; Category::COUNT];
         enabled[Category::Events.index()] = logging_on;
         Logger { sink, enabled }
+    }
+
+    /// A logger that passes nothing on.
+    pub(crate) fn silent() -> Logger {
+        Logger::with_sink(Sink::Silent, false)
     }
 
     /// A logger that keeps its messages in the returned list.
@@ -156,6 +164,7 @@ impl Logger {
                 // takes these NUL-terminated strings, which outlive the call.
                 unsafe { callback(*environment, status.to_fmi(), category.as_ptr(), text.as_ptr()) }
             }
+            Sink::Silent => {}
             #[cfg(test)]
             Sink::Memory(list) => list.borrow_mut().push((status, name, message.to_string())),
         }

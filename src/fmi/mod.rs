@@ -8,7 +8,9 @@
 //!   functions beyond FMI, [`stickslip_inverse_dynamics`] (the engine's
 //!   inverse dynamics for the fit, from the FMU's own library),
 //!   [`stickslip_joint_torque_regressor`] (its joint-torque regressor) and
-//!   [`stickslip_write_model`] (the model with identified values as a model file);
+//!   [`stickslip_write_model`] (the model with identified values as a model file),
+//!   and [`stickslip_run_experiment`] (a whole experiment, and its
+//!   sensitivities, in one call: `experiment`);
 //! * `instance` — one instance's life cycle (`lifecycle`), inputs,
 //!   parameters and simulator, in safe Rust; FMU states in the byte format of
 //!   `snapshot`;
@@ -21,6 +23,7 @@
 pub(crate) mod boundary;
 pub mod description;
 pub(crate) mod exports;
+mod experiment;
 pub mod icon;
 pub(crate) mod instance;
 pub(crate) mod lifecycle;
@@ -32,5 +35,6 @@ mod tests;
 pub mod uri;
 
 pub use exports::{
-    stickslip_inverse_dynamics, stickslip_joint_torque_regressor, stickslip_write_model, EXPORTED_FUNCTIONS,
+    stickslip_inverse_dynamics, stickslip_joint_torque_regressor, stickslip_run_experiment, stickslip_write_model,
+    EXPORTED_FUNCTIONS,
 };

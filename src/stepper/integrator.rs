@@ -10,6 +10,7 @@
 use super::error_control::{error_ratio, optimal_factor, GROWTH_MAX};
 use super::inputs::InputPolynomial;
 use super::newmark::{NewmarkSolver, SubStep};
+use super::schedule::Schedule;
 use super::state::{Phase, State};
 use crate::data::Data;
 use crate::error::StepError;
@@ -66,6 +67,12 @@ pub(crate) struct Integrator {
     /// `carry_decisions`, src/stepper/substep.rs).
     #[cfg_attr(not(feature = "fmi3"), allow(dead_code))]
     pub(crate) located_now: bool,
+    /// Whether the sub-steps' targets are chosen, recorded or replayed
+    /// (see [`Schedule`]).
+    pub(crate) schedule: Schedule,
+    /// A transition is located to this fraction of the sub-step:
+    /// [`EVENT_RESOLUTION`], or [`REPLAY_EVENT_RESOLUTION`](super::schedule::REPLAY_EVENT_RESOLUTION) in a replay.
+    pub(crate) event_resolution: f64,
 }
 
 /// A transition is located to this fraction of the sub-step.
@@ -149,6 +156,8 @@ impl Integrator {
             transitions: Vec::with_capacity(TRANSITION_LOG_CAPACITY),
             transitions_dropped: 0,
             located_now: false,
+            schedule: Schedule::Free,
+            event_resolution: EVENT_RESOLUTION,
             model,
         }
     }
@@ -213,7 +222,9 @@ impl Integrator {
             let proposal = if shortened { steps.next_h.min(h * factor) } else { h * factor.min(growth) };
             steps.next_h = proposal.clamp(settings.h_min, settings.h_max);
         }
-        let Some(event) = self.earliest_event() else {
+        let event = self.earliest_event();
+        self.schedule.note(t0 + h, event.is_some(), &self.state.phase);
+        let Some(event) = event else {
             self.located_now = false;
             return self.accept().map(|()| self.transition_count() != changes);
         };
@@ -223,14 +234,14 @@ impl Integrator {
         let mut solved_at_hi = true;
         let mut side = 0;
         for _ in 0..MAX_LOCATE_ITERATIONS {
-            if hi - lo <= EVENT_RESOLUTION {
+            if hi - lo <= self.event_resolution {
                 break;
             }
             // Regula falsi; a margin that is infinite at an end (a drive
             // whose clearance opened there has no flank force) bisects.
             let secant = lo + (hi - lo) * g_lo / (g_lo - g_hi);
             let theta = if secant.is_finite() { secant } else { 0.5 * (lo + hi) };
-            let theta = theta.clamp(lo + 0.01 * EVENT_RESOLUTION, hi - 0.01 * EVENT_RESOLUTION);
+            let theta = theta.clamp(lo + 0.01 * self.event_resolution, hi - 0.01 * self.event_resolution);
             self.solve_out_of_line(t0 + theta * h)?;
             let g = self.event_value(event, &self.state);
             if g < 0.0 {
@@ -533,6 +544,9 @@ impl Integrator {
     /// instruction-set variants, as is everything it calls per sub-step.
     #[inline(always)]
     fn step_interval<F: AfterSubStep>(&mut self, t0: f64, interval: f64, after: &mut F) -> Result<Flow, StepError> {
+        if self.schedule.is_replaying() {
+            return self.step_interval_replayed(t0, interval, after);
+        }
         let settings = self.model.integrator;
         let budget = work_budget(&settings, interval);
         let t_end = t0 + interval;
@@ -581,6 +595,60 @@ impl Integrator {
             self.check_work(budget)?;
             if F::ACTIVE
                 && t_end - self.state.time > 1e-9 * settings.h_min
+                && after.substep_finished(self, event)? == Flow::Stop
+            {
+                return Ok(Flow::Stop);
+            }
+        }
+        self.state.time = t_end;
+        Ok(Flow::Continue)
+    }
+
+    /// The sub-steps of the interval from `t0` of length `interval` as a
+    /// replay takes them (see [`Schedule`]): each aimed at the next planned
+    /// target, without error control, ended early by an event as any
+    /// sub-step is. A sub-step whose event the plan does not have, or that
+    /// misses the plan's, or that is solved with other phases, is a
+    /// departure; a planned target the run has already passed is skipped as
+    /// one.
+    #[inline(never)]
+    fn step_interval_replayed<F: AfterSubStep>(
+        &mut self,
+        t0: f64,
+        interval: f64,
+        after: &mut F,
+    ) -> Result<Flow, StepError> {
+        let settings = self.model.integrator;
+        let budget = work_budget(&settings, interval);
+        let t_end = t0 + interval;
+        let close = 1e-9 * settings.h_min;
+        while t_end - self.state.time > close {
+            let planned = self.schedule.planned();
+            let target = match planned {
+                Some(p) if p.target <= self.state.time + close => {
+                    // An event moved past this target: the plan is left.
+                    self.schedule.depart();
+                    self.schedule.advance();
+                    continue;
+                }
+                Some(p) if p.target <= t_end + close => p.target.min(t_end),
+                _ => {
+                    self.schedule.depart();
+                    t_end
+                }
+            };
+            // `substep` compares what it finds with the plan (`Schedule::note`).
+            let event = self.substep(target, StepControl::Fixed)?;
+            self.check_work(budget)?;
+            if let Some(p) = planned {
+                // An event the plan has ends its sub-step; one it lacks
+                // leaves the rest up to the planned target to be taken next.
+                if self.state.time >= target - close || (self.located_now && p.event) {
+                    self.schedule.advance();
+                }
+            }
+            if F::ACTIVE
+                && t_end - self.state.time > close
                 && after.substep_finished(self, event)? == Flow::Stop
             {
                 return Ok(Flow::Stop);

@@ -85,6 +85,9 @@ pub(crate) struct NewmarkSolver {
     /// diagnosis of a failure, [`NonConvergence`]).
     engaged: Vec<bool>,
     engagement_changes: Vec<u32>,
+    /// The relative residual of a replay (see `super::schedule`), in place
+    /// of the settings' iteration tolerance.
+    pub(crate) replay_tolerance: Option<f64>,
 }
 
 /// The sub-step before the current one, for the velocity error estimate
@@ -137,6 +140,7 @@ impl NewmarkSolver {
             mass_diagonal: Vec::with_capacity(n),
             engaged: vec![false; joints],
             engagement_changes: vec![0; joints],
+            replay_tolerance: None,
         }
     }
 
@@ -236,7 +240,7 @@ impl NewmarkSolver {
         // ones change gradually, and a Newton matrix of a nearby length still
         // contracts (one that does not is rebuilt after two corrections).
         let reuse = if settings.fixed_step() { 1e-9 } else { NEWTON_REUSE };
-        let tolerance = settings.iteration_tolerance();
+        let tolerance = self.replay_tolerance.unwrap_or_else(|| settings.iteration_tolerance());
         let newton_fits = self.newton_valid
             && (self.newton_h - h).abs() <= reuse * h
             && self.newton_free.len() == nf

@@ -5,6 +5,7 @@ use super::inputs::{check_input_values, DriveInputs, MotorTorques, INPUT_RANGES,
 use super::integrator::{AfterSubStep, Flow, Integrator, NoObserver, Transition};
 use super::isa::InstructionSet;
 use super::reported::{update_energies, update_reported};
+use super::schedule::{PlannedSubStep, Schedule, REPLAY_EVENT_RESOLUTION, REPLAY_ITERATION_TOLERANCE};
 use super::state::{Phase, State};
 use crate::algorithms::kinematics::{forget_joint_transforms, update_joint_transforms};
 use crate::algorithms::rnea::rnea;
@@ -13,6 +14,7 @@ use crate::error::{ModelError, StepError};
 use crate::forces::friction::holds_statically;
 use crate::forces::rotor::rotor_holds_statically;
 use crate::model::{Drive, Model};
+use std::sync::Arc;
 
 /// Where the rotors of motor drives start (see [`Simulator::set_rotor_start`]).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -146,6 +148,40 @@ impl Simulator {
         self.core.model = model;
         self.model_checked = false;
         Ok(())
+    }
+
+    /// Records the targets of the sub-steps from now on (see
+    /// [`Simulator::take_schedule`]); the run itself is unchanged, bit for
+    /// bit.
+    pub fn record_schedule(&mut self) {
+        self.core.schedule = Schedule::Recording(Vec::new());
+    }
+
+    /// The sub-steps recorded since [`Simulator::record_schedule`]; recording
+    /// stops.
+    pub fn take_schedule(&mut self) -> Vec<PlannedSubStep> {
+        match std::mem::take(&mut self.core.schedule) {
+            Schedule::Recording(plan) => plan,
+            _ => Vec::new(),
+        }
+    }
+
+    /// Takes the sub-steps of `plan` from now on, in order, without error
+    /// control, with the Newmark iteration and the event location taken to
+    /// rounding level: internal numerical differentiation of the run that
+    /// recorded it (see [`PlannedSubStep`]). Must follow
+    /// [`Simulator::initialize`], which starts a run afresh.
+    pub fn replay_schedule(&mut self, plan: Arc<[PlannedSubStep]>) {
+        self.core.schedule = Schedule::Replaying { plan, next: 0, departures: 0 };
+        self.core.event_resolution = REPLAY_EVENT_RESOLUTION;
+        self.core.solver.replay_tolerance = Some(REPLAY_ITERATION_TOLERANCE);
+    }
+
+    /// How often a replay left its plan so far: an event the plan does not
+    /// have, one it has that did not happen, a sub-step solved with other
+    /// phases, or sub-steps past the plan's end. 0 when not replaying.
+    pub fn schedule_departures(&self) -> usize {
+        self.core.schedule.departures()
     }
 
     /// Phase transitions since the last [`Simulator::clear_transitions`], and

@@ -19,10 +19,12 @@ differs early does not decide the cost of everything after it.
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from .. import experiment
 from .start import Segments
 
 STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
@@ -211,6 +213,8 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
             rotor = segments.rotor(k, value)
             set_value(slave, inst.by_name["static_start"], False)  # the rotors start where the data put them
             slave.setReal([inst.vr(name) for name in rotor], [float(x) for x in rotor.values()])
+    if native_runs() and experiment.function(slave) is not None:
+        return _run_span_native(slave, inst, payload, first, last, values)
     set_drive, set_torques = _input_setter(slave, inst, payload)
     try:
         slave.enterInitializationMode()
@@ -232,6 +236,45 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
     slave.terminate()
     # A span ends where the next begins: its last sample is the next span's first.
     return filled - (0 if last == len(t) - 1 else 1)
+
+
+def native_runs() -> bool:
+    """Whether runs go through the FMU's ``stickslip_run_experiment`` (one call an experiment)
+    rather than per communication point through fmpy: yes, unless ``STICKSLIP_PER_POINT=1`` (the
+    test that both give the same numbers bit for bit sets it)."""
+    return os.environ.get("STICKSLIP_PER_POINT", "") != "1"
+
+
+def _run_span_native(slave, inst: _Instance, payload: Payload, first: int, last: int, values) -> int:
+    """Samples first..last into ``values`` by one native call: the same FMI calls as the
+    per-point loop below, made inside the FMU's library."""
+    from ..motion import input_names
+
+    drive, torques = payload.inputs()
+    joints = drive.shape[1] // 3
+    span = slice(first, last + 1)
+    torque_vrs = [] if torques is None else [inst.vr(name) for name in payload.torques.names]
+    result = experiment.run(
+        slave,
+        payload.time[span],
+        drive_vrs=[inst.vr(name) for name in input_names(joints)],
+        drive=drive[span],
+        torque_vrs=torque_vrs,
+        torques=None if torques is None else tuple(a[span] for a in torques),
+        output_vrs=[inst.vr(name) for name in payload.outputs],
+        out=values[span] if values[span].flags.c_contiguous else None,
+    )
+    if not values[span].flags.c_contiguous:
+        values[span] = result.outputs
+    if result.reached == 0 and result.status >= 2:
+        raise _Refused(f"at initialization: {inst.reason('initialization failed')}")
+    if result.status >= 2:
+        from fmpy.fmi1 import FMICallException
+
+        raise FMICallException(function="stickslip_run_experiment", status=result.status)
+    filled = last - first + 1
+    slave.terminate()
+    return filled - (0 if last == len(payload.time) - 1 else 1)
 
 
 @functools.cache
