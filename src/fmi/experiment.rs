@@ -149,10 +149,14 @@ impl Experiment<'_> {
     /// the first point, calls `started` on it, and steps through every point
     /// into `out` (points × outputs). On failure: the points filled and the
     /// fault; the rest of `out` is left as it was.
+    ///
+    /// An instance already in step mode (`initialize` false) goes on from
+    /// its time, which must be the first point's.
     fn run(
         &self,
         inst: &mut Instance,
         out: &mut [f64],
+        initialize: bool,
         started: impl FnOnce(&mut Instance),
     ) -> Result<(usize, Status), (usize, Fault)> {
         let no = self.output_vrs.len();
@@ -163,6 +167,17 @@ impl Experiment<'_> {
             }
         };
         let setup = (|| -> Outcome {
+            if !initialize {
+                let now = inst.time();
+                if (self.time[0] - now).abs() > 1e-9 * now.abs().max(1.0) {
+                    return Err(Fault::error(format!(
+                        "time[0] = {} s is not the FMU's time {now} s: an experiment goes on from where the FMU is",
+                        self.time[0]
+                    )));
+                }
+                self.read(inst, &mut out[..no])?;
+                return Ok(Status::Ok);
+            }
             note(inst.enter_initialization_mode()?);
             self.set_inputs(inst, 0)?;
             let status = inst.exit_initialization_mode()?;
@@ -185,10 +200,13 @@ impl Experiment<'_> {
 }
 
 impl Instance {
-    /// The experiment `e` from this instance's values (the instance is
-    /// instantiated: no fmi2EnterInitializationMode yet), its outputs into
+    /// The experiment `e` from this instance's values, its outputs into
     /// `out`, the points reached into `reached`; with `sensitivities`, theirs
-    /// too. Leaves the instance where the last step left it.
+    /// too. An instantiated instance is initialized with the first point's
+    /// inputs; one in step mode goes on from its time, the first point's
+    /// (a master that runs an experiment in parts: no sensitivities then,
+    /// which need the start). Leaves the instance where the last step left
+    /// it.
     pub(crate) fn run_experiment(
         &mut self,
         e: &Experiment,
@@ -202,12 +220,18 @@ impl Instance {
         if out.len() != n * no {
             return Err(Fault::error(format!("outputs has {} values, not points × outputs = {n} × {no}", out.len())));
         }
-        let before = sensitivities.as_ref().map(|_| Before(self.silent_copy()));
+        let initialize = self.lifecycle().is_configuring();
         if let Some(s) = &sensitivities {
+            if !initialize {
+                return Err(Fault::error(
+                    "sensitivities are taken from the start: call it before fmi2EnterInitializationMode".to_string(),
+                ));
+            }
             check_sensitivities(self, s, n * no)?;
         }
+        let before = sensitivities.as_ref().map(|_| Before(self.silent_copy()));
         let recording = sensitivities.is_some();
-        let result = e.run(self, out, |inst| {
+        let result = e.run(self, out, initialize, |inst| {
             if recording {
                 inst.simulator_mut().record_schedule();
             }
@@ -269,52 +293,103 @@ fn differentiate(
             jobs.push((Some(j), -s.steps[j]));
         }
     }
-    let replay = |&(column, change): &(Option<usize>, f64)| -> (Vec<f64>, f64, u64) {
-        let mut inst = before.0.silent_copy();
-        let mut values = vec![f64::NAN; size];
-        let mut applied = change;
-        if let Some(j) = column {
-            let vr = s.vrs[j];
-            let Ok((x, _)) = inst.sensitivity_variable(vr) else { return (values, 0.0, u64::MAX) };
-            // A value its range refuses is moved the other way.
-            if inst.set_real(&[vr], &[x + change]).is_err() {
-                applied = -change;
-                if inst.set_real(&[vr], &[x + applied]).is_err() {
-                    return (values, 0.0, u64::MAX);
-                }
+    let replay = |&(column, change): &(Option<usize>, f64)| -> Replayed {
+        // A value its range or the model's relations refuse (μ_k ≤ μ_s, at
+        // initialization) is moved the other way: by as much (forward
+        // differences), or by twice as much (central: the column becomes a
+        // one-sided difference with the other replay).
+        let first = replay_one(e, before, plan, column.map(|j| (s.vrs[j], change)));
+        let other_way = if s.central { -2.0 * change } else { -change };
+        match (column, &first) {
+            (Some(j), Replayed { departures: u64::MAX, refused: true, .. }) => {
+                replay_one(e, before, plan, Some((s.vrs[j], other_way)))
             }
-        }
-        let plan = Arc::clone(plan);
-        match e.run(&mut inst, &mut values, |inst| inst.simulator_mut().replay_schedule(plan)) {
-            Ok(_) => (values, applied, inst.simulator().schedule_departures() as u64),
-            Err(_) => (values, applied, u64::MAX),
+            _ => first,
         }
     };
-    let results = in_threads(&jobs, s.threads, &replay);
+    let mut results = in_threads(&jobs, s.threads, &replay);
+    // A column whose replays left the plan is taken again with smaller
+    // steps (an event pattern that the step changed may hold under a
+    // smaller one), at most twice.
+    for _ in 0..RETRIES {
+        let departed: Vec<usize> = (0..jobs.len())
+            .filter(|&k| jobs[k].0.is_some() && results[k].departures > 0 && results[k].departures != u64::MAX)
+            .collect();
+        if departed.is_empty() {
+            break;
+        }
+        let again: Vec<(Option<usize>, f64)> =
+            departed.iter().map(|&k| (jobs[k].0, jobs[k].1 * RETRY_FACTOR)).collect();
+        for (k, r) in departed.iter().zip(in_threads(&again, s.threads, &replay)) {
+            if r.departures < results[*k].departures {
+                results[*k] = r;
+            }
+        }
+    }
     let out = s.out;
     out.fill(f64::NAN);
-    s.departures.fill(0);
     let base = if s.central { None } else { Some(&results[0]) };
     for j in 0..p {
-        let mine: Vec<&(Vec<f64>, f64, u64)> =
+        let mine: Vec<&Replayed> =
             jobs.iter().zip(&results).filter(|((c, _), _)| *c == Some(j)).map(|(_, r)| r).collect();
-        let departures = mine.iter().copied().chain(base).map(|r| r.2).fold(0u64, u64::saturating_add);
-        s.departures[j] = departures;
         let (a, b) = match (s.central, base) {
             (true, _) => (mine[0], mine[1]),
             (false, Some(base)) => (mine[0], base),
             (false, None) => unreachable!("forward differences have a base replay"),
         };
-        let dx = a.1 - b.1;
-        if a.2 == u64::MAX || b.2 == u64::MAX || dx == 0.0 {
+        let dx = a.applied - b.applied;
+        if a.departures == u64::MAX || b.departures == u64::MAX || dx == 0.0 {
             s.departures[j] = u64::MAX;
             continue;
         }
+        s.departures[j] = a.departures.saturating_add(b.departures);
         for i in 0..size {
-            out[i * p + j] = (a.0[i] - b.0[i]) / dx;
+            out[i * p + j] = (a.values[i] - b.values[i]) / dx;
         }
     }
     Ok(())
+}
+
+/// How often a departed column is taken again, each time with its step
+/// times [`RETRY_FACTOR`].
+const RETRIES: usize = 2;
+const RETRY_FACTOR: f64 = 0.0625;
+
+/// One replay's outputs, the change of its value that was applied, and
+/// its departures (u64::MAX: it failed; `refused`: at the change itself,
+/// when set or at initialization).
+struct Replayed {
+    values: Vec<f64>,
+    applied: f64,
+    departures: u64,
+    refused: bool,
+}
+
+/// A replay of `plan` from `before` with `change` = (value reference, by
+/// how much) applied, or none.
+fn replay_one(
+    e: &Experiment,
+    before: &Before,
+    plan: &Arc<[PlannedSubStep]>,
+    change: Option<(fmi2ValueReference, f64)>,
+) -> Replayed {
+    let size = e.time.len() * e.output_vrs.len();
+    let mut inst = before.0.silent_copy();
+    let mut values = vec![f64::NAN; size];
+    let failed = |values, refused| Replayed { values, applied: 0.0, departures: u64::MAX, refused };
+    let mut applied = 0.0;
+    if let Some((vr, dx)) = change {
+        let Ok((x, _)) = inst.sensitivity_variable(vr) else { return failed(values, false) };
+        if inst.set_real(&[vr], &[x + dx]).is_err() {
+            return failed(values, true);
+        }
+        applied = dx;
+    }
+    let plan = Arc::clone(plan);
+    match e.run(&mut inst, &mut values, true, |inst| inst.simulator_mut().replay_schedule(plan)) {
+        Ok(_) => Replayed { values, applied, departures: inst.simulator().schedule_departures() as u64, refused: false },
+        Err((reached, _)) => failed(values, reached == 0),
+    }
 }
 
 /// `f` of every job, in at most `threads` threads (0: the processor's).

@@ -742,6 +742,11 @@ impl Instance {
         &self.sim
     }
 
+    /// Where the instance is in the FMI 2.0 life cycle.
+    pub(crate) fn lifecycle(&self) -> LifeCycle {
+        self.lifecycle
+    }
+
     /// The engine (for `super::experiment`, which records and replays its
     /// sub-steps).
     pub(crate) fn simulator_mut(&mut self) -> &mut Simulator {
@@ -965,10 +970,6 @@ impl Instance {
     }
 
 
-    /// Where the instance is in the FMI 2.0 life cycle.
-    pub(crate) fn lifecycle(&self) -> LifeCycle {
-        self.lifecycle
-    }
 
 }
 
