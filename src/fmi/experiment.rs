@@ -387,7 +387,9 @@ fn replay_one(
     }
     let plan = Arc::clone(plan);
     match e.run(&mut inst, &mut values, true, |inst| inst.simulator_mut().replay_schedule(plan)) {
-        Ok(_) => Replayed { values, applied, departures: inst.simulator().schedule_departures() as u64, refused: false },
+        Ok(_) => {
+            Replayed { values, applied, departures: inst.simulator().schedule_departures() as u64, refused: false }
+        }
         Err((reached, _)) => failed(values, reached == 0),
     }
 }

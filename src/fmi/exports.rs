@@ -1108,10 +1108,12 @@ unsafe fn finish(run: impl FnOnce() -> Result<(), Fault>, message: *mut c_char, 
 ///     size_t *reached);                                 /* points whose outputs were written */
 /// ```
 ///
-/// Allowed in the instantiated state only (after fmi2SetupExperiment and
-/// the values); it leaves the instance where the last step left it (step
-/// complete, step failed, or initialization mode when initialization
-/// failed), for fmi2Terminate, fmi2Reset or fmi2FreeInstance. A failure
+/// Allowed in the instantiated state (after fmi2SetupExperiment and the
+/// values: the experiment starts with initialization) and in step complete
+/// (it goes on from the FMU's time, which must be `time[0]`; no
+/// sensitivities then). It leaves the instance where the last step left it
+/// (step complete, step failed, or initialization mode when initialization
+/// failed), for more steps, fmi2Terminate, fmi2Reset or fmi2FreeInstance. A failure
 /// returns the status of the FMI call that failed, with its message logged,
 /// and the points before it written. Boolean outputs come as 0 or 1.
 ///
@@ -1144,9 +1146,9 @@ pub unsafe extern "C" fn stickslip_run_experiment(
     departures: *mut u64,
     reached: *mut usize,
 ) -> fmi2Status {
-    const INSTANTIATED: States = States::of(&[Instantiated]);
+    const STARTS_OR_GOES_ON: States = States::of(&[Instantiated, StepComplete]);
     unsafe {
-        with_instance(c, "stickslip_run_experiment", INSTANTIATED, |inst| {
+        with_instance(c, "stickslip_run_experiment", STARTS_OR_GOES_ON, |inst| {
             let count = |a: usize, b: usize, what: &str| {
                 a.checked_mul(b).ok_or_else(|| Fault::error(format!("{what}: {a} x {b} values overflow")))
             };

@@ -968,9 +968,6 @@ impl Instance {
         continue_within_reach(&mut self.inputs, &held, interval)
             + continue_within_reach(&mut self.torques, &held_torques, interval)
     }
-
-
-
 }
 
 #[cfg(all(test, feature = "fmi3"))]

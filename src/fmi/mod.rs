@@ -22,8 +22,8 @@
 
 pub(crate) mod boundary;
 pub mod description;
-pub(crate) mod exports;
 mod experiment;
+pub(crate) mod exports;
 pub mod icon;
 pub(crate) mod instance;
 pub(crate) mod lifecycle;

@@ -647,10 +647,7 @@ impl Integrator {
                     self.schedule.advance();
                 }
             }
-            if F::ACTIVE
-                && t_end - self.state.time > close
-                && after.substep_finished(self, event)? == Flow::Stop
-            {
+            if F::ACTIVE && t_end - self.state.time > close && after.substep_finished(self, event)? == Flow::Stop {
                 return Ok(Flow::Stop);
             }
         }
