@@ -6,7 +6,7 @@ encoders with 2e-6 rad and 1e-6 m of noise, seed 1) at mu_k[1] = 0.17, mu_s[1] =
 mu_k[3] = 0.2, k[3] = 8e5; the fit starts 30-40 % away (0.12, 0.3, 0.14, 5e5) with
 `starts` starts (default 1: the initial point; the equation-error estimate adds one).
 
-    python scripts/bench_fit.py [--workers 2] [--starts 1] [--repeat 3] [--fmu FMU]
+    python scripts/bench_fit.py [--workers 2] [--starts 1] [--repeat 3] [--fmu FMU] [--jacobian differences]
 
 ``--suite``: the identification benchmark (stickslip.fit.benchmark): per arm and draw a seeded
 fit problem (2-4 of mu_k, mu_s, k, b_v of one or two joints, true values drawn, a motion with
@@ -45,6 +45,12 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--starts", type=int, default=None, help="the fit's starts (default 1; --suite: drawn, 2-4)")
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument(
+        "--jacobian",
+        choices=("sensitivities", "differences"),
+        default="sensitivities",
+        help="[options] jacobian: the FMU's sensitivities (default) or differences of free runs",
+    )
     suite = p.add_argument_group("the identification benchmark (--suite)")
     suite.add_argument("--suite", action="store_true", help="run the identification benchmark instead")
     suite.add_argument("--arms", default="reference,kuka_iiwa,xarm6", help="comma-separated arm names or FMU paths")
@@ -76,7 +82,7 @@ def main() -> None:
             n: {"initial": INITIAL[n], "bounds": BOUNDS[n], **({"scale": "log"} if n.startswith("k[") else {})}
             for n in TRUTH
         },
-        "options": {"starts": a.starts, "seed": 1},
+        "options": {"starts": a.starts, "seed": 1, "jacobian": a.jacobian},
     }
     walls = []
     for k in range(a.repeat):

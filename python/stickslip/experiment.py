@@ -74,7 +74,7 @@ def _vrs(values) -> ctypes.Array:
 
 
 def _array(a, rows: int, columns: int, name: str) -> np.ndarray:
-    a = np.ascontiguousarray(a if a is not None else np.empty((rows, 0)), dtype=np.float64)
+    a = np.require(a if a is not None else np.empty((rows, 0)), np.float64, ["C", "A"])
     if a.size != rows * columns:
         raise ValueError(f"{name} has {a.size} values, not {rows} points x {columns}")
     return a
@@ -101,19 +101,20 @@ def run(
     f = function(slave)
     if f is None:
         raise RuntimeError(f"this FMU's library has no {NAME}: build it again with scripts/build_fmu.sh")
-    t = np.ascontiguousarray(time, dtype=np.float64)
+    t = np.require(time, np.float64, ["C", "A"])  # data columns may be unaligned views
     n = len(t)
     drive = _array(drive, n, len(drive_vrs), "drive")
     if torques is None:
         torques = (None, None, None)
     value, rate, acc = (_array(x, n, len(torque_vrs), "torques") for x in torques)
     values = np.full((n, len(output_vrs)), np.nan) if out is None else out
-    if values.shape != (n, len(output_vrs)) or not values.flags.c_contiguous or values.dtype != np.float64:
-        raise ValueError(f"out must be a C-contiguous float64 array of shape {(n, len(output_vrs))}")
+    flags = values.flags
+    if values.shape != (n, len(output_vrs)) or not (flags.c_contiguous and flags.aligned) or values.dtype != np.float64:
+        raise ValueError(f"out must be a C-contiguous, aligned float64 array of shape {(n, len(output_vrs))}")
     p = len(sensitivity_vrs)
     sens = np.full((n, len(output_vrs), p), np.nan) if p else np.empty(1)
     departures = np.zeros(max(p, 1), dtype=np.uint64)
-    step = np.ascontiguousarray(steps if p else [1.0], dtype=np.float64)
+    step = np.require(steps if p else [1.0], np.float64, ["C", "A"])
     if p and len(step) != p:
         raise ValueError(f"{p} sensitivity values need {p} steps, not {len(step)}")
     reached = _size(0)

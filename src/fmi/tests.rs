@@ -1184,13 +1184,13 @@ fn sensitivities_are_the_derivatives_of_the_scheme_across_stick_slip_events() {
     // locates an event to 1e-7 of a sub-step, a replay to 1e-12); the best
     // of them is compared. Joint 1 sticks and slips in these 0.3 s, so every
     // column crosses events, each located afresh in every run (the
-    // saltation). Measured: 9e-7 (mu_k[1], change 1e-4), 2e-6 (k[1], 1e-6),
-    // 5e-8 (k[3], 1e-6) of the column's largest value; mu_s[1] moves the
-    // breakaway instants themselves, and its free differences stop at 2.4e-5
-    // (change 3e-3), their located instants' noise over the change.
+    // saltation). Measured, of the column's largest value: k[3] 4e-8 (it
+    // hardly moves the events), k[1] 2.8e-6, mu_k[1] 4.3e-6, and mu_s[1],
+    // which moves the breakaway instants themselves, 5e-5: where the free
+    // differences stop, their located instants' noise over the change.
     let n = 300;
     let base = [("h_min", 1e-4), ("h_max", 1e-4), ("tolerance", 1e-13), ("mu_k[1]", 0.17), ("mu_s[1]", 0.22)];
-    let wrt = [("mu_k[1]", 0.17, 3e-6), ("mu_s[1]", 0.22, 5e-5), ("k[1]", 1e6, 3e-6), ("k[3]", 1e6, 3e-6)];
+    let wrt = [("mu_k[1]", 0.17, 1e-5), ("mu_s[1]", 0.22, 1e-4), ("k[1]", 1e6, 1e-5), ("k[3]", 1e6, 1e-6)];
     let names: Vec<&str> = wrt.iter().map(|w| w.0).collect();
     let steps: Vec<f64> = wrt.iter().map(|w| 1e-6 * w.1).collect();
     let (c, _) = configured(&base);

@@ -85,8 +85,8 @@ pub(crate) struct NewmarkSolver {
     /// diagnosis of a failure, [`NonConvergence`]).
     engaged: Vec<bool>,
     engagement_changes: Vec<u32>,
-    /// The relative residual of a replay (see `super::schedule`), in place
-    /// of the settings' iteration tolerance.
+    /// The relative residual of a replay (see `super::schedule`), where it
+    /// is below the settings' iteration tolerance.
     pub(crate) replay_tolerance: Option<f64>,
 }
 
@@ -240,7 +240,10 @@ impl NewmarkSolver {
         // ones change gradually, and a Newton matrix of a nearby length still
         // contracts (one that does not is rebuilt after two corrections).
         let reuse = if settings.fixed_step() { 1e-9 } else { NEWTON_REUSE };
-        let tolerance = self.replay_tolerance.unwrap_or_else(|| settings.iteration_tolerance());
+        let tolerance = match self.replay_tolerance {
+            Some(tight) => tight.min(settings.iteration_tolerance()),
+            None => settings.iteration_tolerance(),
+        };
         let newton_fits = self.newton_valid
             && (self.newton_h - h).abs() <= reuse * h
             && self.newton_free.len() == nf

@@ -92,7 +92,8 @@ class Evaluator:
         self.client = client
         self.fmu_data = fmu_data
         self.payloads = payloads
-        self.runs = 0
+        self.runs = 0  # experiments run (each of them with sensitivities counts once, in jacobians too)
+        self.jacobians = 0
         self._lock = threading.Lock()
         if client is not None:
             from ..sweep import FmuPlugin
@@ -100,13 +101,22 @@ class Evaluator:
             client.register_plugin(FmuPlugin(fmu_data, digest))
             self.remote = client.scatter(payloads, broadcast=True)
 
-    def map(self, jobs: list) -> list:
-        """jobs: (experiment index, parameters, Segments or None) -> RunResults, in order."""
+    def map(self, jobs: list, sensitivities: dict | None = None) -> list:
+        """jobs: (experiment index, parameters, Segments or None) -> RunResults, in order; with
+        ``sensitivities`` ({parameter: step}), their derivatives too (one native call a job)."""
         with self._lock:
             self.runs += len(jobs)
+            if sensitivities:
+                self.jacobians += len(jobs)
         if self.client is None:
-            return [run(self.digest, self.payloads[i], p, s, fmu_data=self.fmu_data) for i, p, s in jobs]
-        futures = [self.client.submit(run, self.digest, self.remote[i], p, s, pure=False) for i, p, s in jobs]
+            return [
+                run(self.digest, self.payloads[i], p, s, fmu_data=self.fmu_data, sensitivities=sensitivities)
+                for i, p, s in jobs
+            ]
+        futures = [
+            self.client.submit(run, self.digest, self.remote[i], p, s, sensitivities=sensitivities, pure=False)
+            for i, p, s in jobs
+        ]
         return self.client.gather(futures)
 
 
@@ -128,6 +138,9 @@ class Problem:
         self.failures = []  # (parameters, experiment, status, message) of runs that did not finish
         self._lock = threading.Lock()
         self._segments = {}
+        # Jacobian columns from the FMU's sensitivities, and by differences where their event
+        # pattern changed (shared with the problems of other tolerances: with_tolerance).
+        self.columns = {"sensitivities": 0, "differences": 0}
 
     def with_tolerance(self, error_tolerance: float) -> Problem:
         """The same problem with the FMU's error_tolerance set to ``error_tolerance``."""
@@ -185,8 +198,9 @@ class Problem:
             values["error_tolerance"] = self.error_tolerance
         return values
 
-    def runs(self, points: list, segment: float | None = None) -> list:
-        """For each z in points: the RunResults of every experiment."""
+    def runs(self, points: list, segment: float | None = None, sensitivities: dict | None = None) -> list:
+        """For each z in points: the RunResults of every experiment (with ``sensitivities``,
+        {parameter: step}, their derivatives too)."""
         segment = self.horizon if segment is None else segment  # the final cost's shooting
         segments = self.segments(segment) if segment is not None else [None] * len(self.spec.experiments)
         jobs = []
@@ -194,7 +208,7 @@ class Problem:
             p = self.parameters(z)
             for i in range(len(self.spec.experiments)):
                 jobs.append((i, p, segments[i]))
-        results = self.evaluator.map(jobs)
+        results = self.evaluator.map(jobs, sensitivities)
         n = len(self.spec.experiments)
         return [results[k * n : (k + 1) * n] for k in range(len(points))]
 
@@ -209,6 +223,46 @@ class Problem:
                 with self._lock:
                     self.failures.append({"experiment": e.name, "status": res.status, "message": res.message})
         return np.concatenate(parts)
+
+    @property
+    def exact_jacobians(self) -> bool:
+        """Whether Jacobians come from the FMU's sensitivities (``[options] jacobian``)."""
+        return self.spec.options.get("jacobian", "sensitivities") == "sensitivities"
+
+    def count_columns(self, exact) -> None:
+        with self._lock:
+            self.columns["sensitivities"] += int(np.sum(exact))
+            self.columns["differences"] += int(np.sum(~exact))
+
+    def sensitivity_steps(self, z) -> dict:
+        """{estimate: step} of the FMU's internal numerical differentiation at z: 1e-6 of the
+        value (1e-6 of its bound range where the value is 0). With the sub-steps and events of
+        the run frozen, the differences are the scheme's derivative up to rounding and to the
+        Newmark iteration's 1e-12 over this step (1e-6 of the column, measured in
+        src/fmi/tests.rs), not the error control's noise."""
+        theta = self.transform.theta(z)
+        return {
+            e.name: float(max(1e-6 * abs(t), 1e-6 * (e.high - e.low) if t == 0.0 else 0.0, 1e-300))
+            for e, t in zip(self.spec.estimates, theta, strict=True)
+        }
+
+    def residual_jacobian(self, results: list, z) -> tuple:
+        """(J, exact): the residuals' Jacobian in z from the runs' sensitivities, and per estimate
+        whether its column is exact (no run's replays left their event pattern, every value
+        finite); (None, None) where a run has no sensitivities. Rows of samples the residual
+        penalizes are zero."""
+        p = len(self.spec.estimates)
+        parts = []
+        exact = np.ones(p, dtype=bool)
+        for res, meas, sigma in zip(results, self.measured, self.sigma, strict=True):
+            if res.jacobian is None:
+                return None, None
+            n, k = meas.shape
+            jac = res.jacobian / sigma[None, :, None]
+            jac[~np.isfinite((res.values - meas) / sigma)] = 0.0
+            exact &= res.exact & np.all(np.isfinite(jac), axis=(0, 1))
+            parts.append(jac.transpose(1, 0, 2).reshape(k * n, p))
+        return np.vstack(parts) @ self.transform.jacobian(z), exact
 
     def residuals(self, points: list, segment: float | None = None) -> list:
         return [self.residual(r) for r in self.runs(points, segment)]

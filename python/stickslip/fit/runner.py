@@ -72,6 +72,10 @@ class RunResult:
     status: str  # "ok", "refused", "discard", "error"
     message: str
     reached: int  # samples reached
+    # With sensitivities requested: (samples, outputs, parameters) d(output)/d(parameter), and per
+    # parameter whether its column is exact (no replay of any span left its event pattern).
+    jacobian: np.ndarray | None = None
+    exact: np.ndarray | None = None
 
 
 class _Instance:
@@ -141,15 +145,28 @@ def _unzipdir(digest: str, fmu_data: bytes | None) -> str:
 
 
 def run(
-    digest: str, payload: Payload, parameters: dict, segments: Segments | None = None, fmu_data: bytes | None = None
+    digest: str,
+    payload: Payload,
+    parameters: dict,
+    segments: Segments | None = None,
+    fmu_data: bytes | None = None,
+    sensitivities: dict | None = None,
 ) -> RunResult:
     """The outputs ``payload.outputs`` at every sample of the experiment, with ``parameters``
     (and the payload's fixed ones) set; in segments when ``segments`` is given, else from the
-    payload's start state (when it has one)."""
+    payload's start state (when it has one). With ``sensitivities`` ({parameter: step}), also
+    their derivatives by the FMU's internal numerical differentiation
+    (:mod:`stickslip.experiment`): ``jacobian`` and ``exact`` of the result, None where the FMU
+    cannot give them (built before the export, or ``STICKSLIP_PER_POINT=1``)."""
     from fmpy.fmi1 import FMICallException
 
     n = len(payload.time)
     values = np.full((n, len(payload.outputs)), np.nan)
+    wrt = None
+    if sensitivities:
+        wrt = _Sensitivities(list(sensitivities), np.array(list(sensitivities.values()), dtype=np.float64))
+        wrt.jacobian = np.full((n, len(payload.outputs), len(wrt.names)), np.nan)
+        wrt.exact = np.ones(len(wrt.names), dtype=bool)
     try:
         inst = _instance(_unzipdir(digest, fmu_data))
     except Exception as e:  # noqa: BLE001 -- a result, never a crash
@@ -160,7 +177,7 @@ def run(
     for k, (first, last) in enumerate(bounds):
         start = None if segments is None else (segments, k)
         try:
-            reached += _run_span(inst, payload, parameters, first, last, start, values)
+            reached += _run_span(inst, payload, parameters, first, last, start, values, wrt)
         except _Refused as e:
             inst.drop()
             return RunResult(values, "refused", str(e), reached)
@@ -172,7 +189,20 @@ def run(
         except Exception as e:  # noqa: BLE001 -- a result, never a crash
             inst.drop()
             return RunResult(values, "error", f"{type(e).__name__}: {e}", reached)
+    if wrt is not None and wrt.available:
+        return RunResult(values, "ok", "", reached, wrt.jacobian, wrt.exact)
     return RunResult(values, "ok", "", reached)
+
+
+@dataclass
+class _Sensitivities:
+    """What a run's sensitivities are taken to, and where they go (filled span by span)."""
+
+    names: list
+    steps: np.ndarray
+    jacobian: np.ndarray = None
+    exact: np.ndarray = None
+    available: bool = True
 
 
 class _Refused(Exception):
@@ -184,11 +214,16 @@ def _bounds(starts, n: int) -> list:
     return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
 
 
-def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, last: int, start, values) -> int:
-    """Simulates samples first..last into ``values``; returns how many samples it filled."""
+def _run_span(
+    inst: _Instance, payload: Payload, parameters: dict, first: int, last: int, start, values, wrt=None
+) -> int:
+    """Simulates samples first..last into ``values`` (and their sensitivities into ``wrt``);
+    returns how many samples it filled."""
     from fmpy.fmi1 import FMICallException
 
     from ..fmu import set_value
+
+    chain = {}  # start value -> {parameter: d(start value)/d(parameter)}: the rotors' start
 
     slave = inst.ready()
     t = payload.time
@@ -213,8 +248,12 @@ def _run_span(inst: _Instance, payload: Payload, parameters: dict, first: int, l
             rotor = segments.rotor(k, value)
             set_value(slave, inst.by_name["static_start"], False)  # the rotors start where the data put them
             slave.setReal([inst.vr(name) for name in rotor], [float(x) for x in rotor.values()])
+            if wrt is not None:
+                chain = _rotor_chain(segments, k, known, value, wrt, rotor)
     if native_runs() and experiment.function(slave) is not None:
-        return _run_span_native(slave, inst, payload, first, last, values)
+        return _run_span_native(slave, inst, payload, first, last, values, wrt, chain)
+    if wrt is not None:
+        wrt.available = False
     set_drive, set_torques = _input_setter(slave, inst, payload)
     try:
         slave.enterInitializationMode()
@@ -245,15 +284,45 @@ def native_runs() -> bool:
     return os.environ.get("STICKSLIP_PER_POINT", "") != "1"
 
 
-def _run_span_native(slave, inst: _Instance, payload: Payload, first: int, last: int, values) -> int:
+def _rotor_chain(segments, k: int, known: dict, value, wrt, rotor: dict) -> dict:
+    """{theta_m_start[i]: (its value, {parameter: derivative})}: how the rotors' start of segment k
+    (:meth:`Segments.rotor`, from the gear's k[i] and Delta[i]) moves with the parameters the
+    sensitivities are taken to, by central differences of that closed form (its rounding ~1e-10
+    of the derivative)."""
+    out = {}
+    for name, step in zip(wrt.names, wrt.steps, strict=True):
+        if not (name.startswith("k[") or name.startswith("Delta[")) or name not in known:
+            continue
+
+        def moved(dx, name=name):
+            return segments.rotor(k, lambda n: known[n] + dx if n == name else value(n))
+
+        plus, minus = moved(step), moved(-step)
+        for start in plus:
+            d = (plus[start] - minus[start]) / (2.0 * step)
+            if d != 0.0:
+                out.setdefault(start, (rotor[start], {}))[1][name] = d
+    return out
+
+
+def _run_span_native(
+    slave, inst: _Instance, payload: Payload, first: int, last: int, values, wrt=None, chain=None
+) -> int:
     """Samples first..last into ``values`` by one native call: the same FMI calls as the
-    per-point loop below, made inside the FMU's library."""
+    per-point loop below, made inside the FMU's library; with ``wrt``, the sensitivities too
+    (those to a rotor's start value folded into its parameters' by ``chain``)."""
     from ..motion import input_names
 
     drive, torques = payload.inputs()
     joints = drive.shape[1] // 3
     span = slice(first, last + 1)
     torque_vrs = [] if torques is None else [inst.vr(name) for name in payload.torques.names]
+    names, steps = [], []
+    if wrt is not None:
+        starts = sorted(chain or {})
+        names = list(wrt.names) + starts
+        # A start value's step: 1e-6 of its size, at least 1e-9 (rad).
+        steps = [*wrt.steps, *(max(1e-9, 1e-6 * abs(chain[n][0])) for n in starts)]
     result = experiment.run(
         slave,
         payload.time[span],
@@ -262,10 +331,23 @@ def _run_span_native(slave, inst: _Instance, payload: Payload, first: int, last:
         torque_vrs=torque_vrs,
         torques=None if torques is None else tuple(a[span] for a in torques),
         output_vrs=[inst.vr(name) for name in payload.outputs],
+        sensitivity_vrs=[inst.vr(n) for n in names],
+        steps=steps,
         out=values[span] if values[span].flags.c_contiguous else None,
     )
     if not values[span].flags.c_contiguous:
         values[span] = result.outputs
+    if wrt is not None and result.sensitivities is not None:
+        p = len(wrt.names)
+        jac = result.sensitivities[:, :, :p].copy()
+        exact = result.departures[:p] == 0
+        for m, start in enumerate(starts):
+            for name, d in chain[start][1].items():
+                j = wrt.names.index(name)
+                jac[:, :, j] += result.sensitivities[:, :, p + m] * d
+                exact[j] &= result.departures[p + m] == 0
+        wrt.jacobian[span] = jac
+        wrt.exact &= exact
     if result.reached == 0 and result.status >= 2:
         raise _Refused(f"at initialization: {inst.reason('initialization failed')}")
     if result.status >= 2:

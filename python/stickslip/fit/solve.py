@@ -57,39 +57,62 @@ class StartResult:
 
 
 def jacobian(problem: Problem, z, r0, segment: float | None, step: float) -> tuple:
-    """(J, notes): J of the residuals at z (forward differences, in parallel)."""
-    p = len(z)
+    """(J, notes): J of the residuals at z: from the FMU's sensitivities (one native call an
+    experiment, :mod:`stickslip.experiment`) where the SPEC's ``jacobian`` says so and the FMU
+    has them; forward differences of free runs with ``step`` for the columns whose event
+    pattern changed within the sensitivities' step, and for all where there are none."""
+    if problem.exact_jacobians:
+        runs = problem.runs([z], segment, problem.sensitivity_steps(z))[0]
+        J, exact = (None, None) if Problem.failed(runs) else problem.residual_jacobian(runs, z)
+        if J is not None:
+            problem.count_columns(exact)
+            if exact.all():
+                return J, []
+            columns = np.flatnonzero(~exact)
+            Jd, notes = differences(problem, z, r0, segment, step, columns)
+            J[:, columns] = Jd
+            names = ", ".join(problem.spec.estimates[j].name for j in columns)
+            return J, [*notes, f"{names}: the event pattern changed within the sensitivities' step; differences"]
+    return differences(problem, z, r0, segment, step)
+
+
+def differences(problem: Problem, z, r0, segment: float | None, step: float, columns=None) -> tuple:
+    """(J, notes): forward differences of free runs (in parallel) for ``columns`` (default all)
+    of the residuals' Jacobian at z."""
+    columns = list(range(len(z))) if columns is None else list(columns)
     points, signs = [], []
-    for j in range(p):
+    for j in columns:
         s = -1.0 if z[j] + step > 1.0 else 1.0
         zz = np.array(z, dtype=np.float64)
         zz[j] += s * step
         points.append(zz)
         signs.append(s)
     runs = problem.runs(points, segment)
-    retry = [j for j in range(p) if Problem.failed(runs[j])]
+    retry = [m for m in range(len(columns)) if Problem.failed(runs[m])]
     notes = []
     if retry:
         back = []
-        for j in retry:
+        for m in retry:
             zz = np.array(z, dtype=np.float64)
-            zz[j] -= signs[j] * step
+            zz[columns[m]] -= signs[m] * step
             back.append(zz)
-            signs[j] = -signs[j]
-        for j, res in zip(retry, problem.runs(back, segment), strict=True):
-            runs[j] = res
-            name = problem.spec.estimates[j].name
-            notes.append(f"{name}: the forward point failed ({runs[j][0].status}); one-sided the other way")
-    J = np.empty((len(r0), p))
-    for j in range(p):
-        J[:, j] = (problem.residual(runs[j]) - r0) / (signs[j] * step)
+            signs[m] = -signs[m]
+        for m, res in zip(retry, problem.runs(back, segment), strict=True):
+            runs[m] = res
+            name = problem.spec.estimates[columns[m]].name
+            notes.append(f"{name}: the forward point failed ({runs[m][0].status}); one-sided the other way")
+    J = np.empty((len(r0), len(columns)))
+    for m in range(len(columns)):
+        J[:, m] = (problem.residual(runs[m]) - r0) / (signs[m] * step)
     return J, notes
 
 
 # Stopping tolerances (relative change of the cost, of z): multiple shooting only has to
 # bring a start into the basin of the measured stick-slip pattern; single shooting gives
-# the estimate, to well below its standard error.
-TOLERANCE = {"multiple": 1e-5, "single": 1e-10}
+# the estimate, to well below its standard error. On the FMU's sensitivities, whose steps
+# are not blurred by a difference's, multiple shooting stops at 1e-3 (docs/performance.md,
+# "Fits": what it saves, and that the answers stay).
+TOLERANCE = {"multiple": 1e-5, "single": 1e-10, "multiple_exact": 1e-3}
 
 
 def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nfev: int | None = None) -> tuple:
@@ -100,6 +123,8 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     cache = {}
     history = []
     tol = TOLERANCE["single" if segment is None else "multiple"]
+    if segment is not None and problem.exact_jacobians:
+        tol = TOLERANCE["multiple_exact"]
 
     def fun(z):
         key = tuple(np.round(z, 15))
@@ -130,6 +155,40 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     return result, history
 
 
+# Gauss-Newton from an answer: at most this many steps, until a step moves no estimate by more
+# than GN_SMALL of the distance its Jacobian column says one unit of cost is.
+GN_STEPS = 4
+GN_SMALL = 1e-3
+
+
+def gauss_newton(problem: Problem, z, r, Jz, options: dict):
+    """Single shooting from z by Gauss-Newton steps on the FMU's sensitivities (``r`` and ``Jz``
+    at z), each taken only where it lowers the cost; the point it ends at, or None where the
+    first step does not lower the cost or the loss is not linear (then least squares
+    refits). From an answer at a nearby error tolerance the minimum is a step or two away, where
+    a trust region spends a dozen Jacobians on its stopping tests."""
+    if options["loss"] != "linear":
+        return None
+    cost = 0.5 * float(r @ r)
+    moved = False
+    for _ in range(GN_STEPS):
+        step = np.linalg.lstsq(Jz, -r, rcond=None)[0]
+        z_new = np.clip(z + step, 0.0, 1.0)
+        runs = problem.runs([z_new])[0]
+        if Problem.failed(runs):
+            break
+        r_new = problem.residual(runs)
+        cost_new = 0.5 * float(r_new @ r_new)
+        if not cost_new < cost:
+            break
+        z, r, cost, moved = z_new, r_new, cost_new, True
+        # One unit of cost along column j is 1/|J_j| in z_j.
+        if np.all(np.abs(step) * np.linalg.norm(Jz, axis=0) <= GN_SMALL):
+            break
+        Jz, _ = jacobian(problem, z, r, None, options["diff_step"])
+    return z if moved else None
+
+
 # Single shooting's Jacobian steps, as fractions of ``diff_step``: coarse to fine.
 STEP_FACTORS = (1.0, 0.3, 0.1, 0.03)
 
@@ -146,9 +205,12 @@ def refine(problem: Problem, z, options: dict, start=None, nfev: int = 0) -> tup
     every step it tries fails: measured on the calibration example, cost 5361.5 with 1e-3
     against 5278.1 after 3e-4 (the truth: 5287.8), every estimate moved to within 0.3 % of
     the truth. Each stage starts where the last ended; the best stage's step is the one the
-    uncertainty's Jacobian takes (``res.step_factor``)."""
+    uncertainty's Jacobian takes (``res.step_factor``). With the FMU's sensitivities
+    (``[options] jacobian``) there is no step to refine, and one stage is taken."""
     best = None
-    for factor in STEP_FACTORS:
+    # Sensitivities have no step to refine: one stage (the differences of a column whose event
+    # pattern changes within their step take diff_step).
+    for factor in STEP_FACTORS[:1] if problem.exact_jacobians else STEP_FACTORS:
         step = factor * options["diff_step"]
         res, hist = local_fit(problem, z if best is None else best.x, None, dict(options, diff_step=step))
         nfev += res.nfev

@@ -62,6 +62,7 @@ ESTIMATE_KEYS = ("initial", "bounds", "scale")
 LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
 SHOOTING = ("auto", "single", "multiple")
 STAGES = ("output-error", "equation-error")
+JACOBIANS = ("sensitivities", "differences")
 OPTION_DEFAULTS = {
     "starts": 1,
     "seed": 1,
@@ -77,6 +78,7 @@ OPTION_DEFAULTS = {
     "derivatives": "auto",
     "horizon": None,
     "stage": "output-error",
+    "jacobian": "sensitivities",
 }
 MAX_STARTS = 1000
 
@@ -312,6 +314,12 @@ def _options(raw, where: str) -> dict:
             raise FitSpecError(f"{where}: {key} = {v!r}: must be an integer >= {0 if key == 'seed' else 1}")
     if options["loss"] not in LOSSES:
         raise FitSpecError(f"{where}: loss = {options['loss']!r}: one of {', '.join(LOSSES)}")
+    if options["jacobian"] not in JACOBIANS:
+        raise FitSpecError(
+            f"{where}: jacobian = {options['jacobian']!r}: one of {', '.join(map(repr, JACOBIANS))} ('sensitivities': "
+            "the FMU's derivatives of its own scheme, one call a Jacobian; 'differences': forward differences of "
+            "free runs with diff_step)"
+        )
     if options["shooting"] not in SHOOTING:
         raise FitSpecError(f"{where}: shooting = {options['shooting']!r}: one of {', '.join(SHOOTING)}")
     for key, high in (("f_scale", math.inf), ("segment", math.inf), ("diff_step", 0.1)):
