@@ -18,7 +18,9 @@ import math
 import random
 import shlex
 import subprocess
+import tempfile
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -1071,3 +1073,44 @@ def test_a_motor_drive_is_fitted_from_measured_torques(tmp_path):
         print(name, p["value"], p["std_error"], (p["value"] - value) / p["std_error"])
         assert abs(p["value"] - value) <= 3 * p["std_error"], (name, p, value)
     assert 0.9 < r["rms_normalized_residual"] < 1.1, r["rms_normalized_residual"]
+
+
+def test_a_jacobian_that_is_neither_kind_is_refused_naming_both():
+    from stickslip.fit.spec import FitSpecError, load
+
+    columns = fc.measured(0.2, seed=1)
+    with tempfile.TemporaryDirectory() as d:
+        data = fc.write_data(Path(d) / "run.csv", columns)
+        spec = fc.spec(fc.experiment(data), ["mu_s[1]"], {"mu_s[1]": 0.25}, {"mu_s[1]": (0.05, 0.5)})
+        spec["options"]["jacobian"] = "adjoint"
+        with pytest.raises(FitSpecError, match=r"jacobian = 'adjoint': one of 'sensitivities', 'differences'"):
+            load(spec)
+
+
+@pytest.mark.slow
+def test_the_fmus_sensitivities_give_the_answer_of_differences():
+    """The same single-shooting fit with ``jacobian = "sensitivities"`` and with the default
+    differences: the estimates agree within 0.5 standard errors (issue 43's criterion), and the
+    sensitivities' Jacobian columns were exact (none fell back to differences)."""
+    columns = fc.measured(1.0, seed=3)
+    with tempfile.TemporaryDirectory() as d:
+        data = fc.write_data(Path(d) / "run.csv", columns)
+        names = ["mu_k[1]", "mu_s[1]", "k[3]"]
+        initial = {n: fc.TRUTH[n] * f for n, f in zip(names, (0.9, 1.1, 0.8), strict=True)}
+        bounds = {n: fc.BOUNDS[n] for n in names}
+        answers = {}
+        for kind in ("differences", "sensitivities"):
+            spec = fc.spec(fc.experiment(data), names, initial, bounds, shooting="single", seed=1)
+            spec["options"]["jacobian"] = kind
+            answers[kind] = _fit(spec)
+    a, b = answers["differences"], answers["sensitivities"]
+    for k in names:
+        print(k, a["parameters"][k]["value"], b["parameters"][k]["value"], a["parameters"][k]["std_error"])
+    print(b["jacobian_columns"], a["n_evaluations"], b["n_evaluations"])
+    for k in names:
+        se = a["parameters"][k]["std_error"]
+        assert abs(a["parameters"][k]["value"] - b["parameters"][k]["value"]) <= 0.5 * se, k
+        assert b["parameters"][k]["std_error"] == pytest.approx(se, rel=0.1), k
+    assert b["jacobian_columns"]["runs with sensitivities"] > 0
+    assert b["jacobian_columns"]["differences"] == 0, b["jacobian_columns"]
+    assert a["jacobian_columns"]["runs with sensitivities"] == 0

@@ -761,6 +761,7 @@ def _summarize(
         "rms_normalized_residual": float(np.sqrt(np.mean(r**2))),
         "residual_rms": residual_rms,
         "n_evaluations": evaluator.runs,
+        "jacobian_columns": {"runs with sensitivities": evaluator.jacobians, **problem.columns},
         "wall_s": time.perf_counter() - t0,
         "converged": best.status == "converged",
         "warnings": warnings,

@@ -227,7 +227,7 @@ class Problem:
     @property
     def exact_jacobians(self) -> bool:
         """Whether Jacobians come from the FMU's sensitivities (``[options] jacobian``)."""
-        return self.spec.options.get("jacobian", "sensitivities") == "sensitivities"
+        return self.spec.options.get("jacobian", "differences") == "sensitivities"
 
     def count_columns(self, exact) -> None:
         with self._lock:

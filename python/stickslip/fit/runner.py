@@ -291,7 +291,7 @@ def _rotor_chain(segments, k: int, known: dict, value, wrt, rotor: dict) -> dict
     of the derivative)."""
     out = {}
     for name, step in zip(wrt.names, wrt.steps, strict=True):
-        if not (name.startswith("k[") or name.startswith("Delta[")) or name not in known:
+        if not name.startswith(("k[", "Delta[")) or name not in known:
             continue
 
         def moved(dx, name=name):

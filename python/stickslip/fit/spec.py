@@ -78,7 +78,7 @@ OPTION_DEFAULTS = {
     "derivatives": "auto",
     "horizon": None,
     "stage": "output-error",
-    "jacobian": "sensitivities",
+    "jacobian": "differences",
 }
 MAX_STARTS = 1000
 
