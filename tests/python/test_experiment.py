@@ -1,0 +1,100 @@
+"""A whole experiment in one native call (``stickslip_run_experiment``, python/stickslip/experiment.py)
+through the packaged FMU as the fit drives it (fmpy instantiates and sets it up, the library runs
+the experiment): the per-point FMI calls' numbers bit for bit, in single and multiple shooting
+and where a step is discarded; and the sensitivities of a fit's residuals, assembled over
+segments and channels, against differences of free runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fit_cases as fc
+from helpers import require_fmu
+
+
+def _problem(tmp_path, names, options=None, duration=0.6):
+    from stickslip.fit.problem import Evaluator, Problem, payload_of
+    from stickslip.fit.spec import load
+    from stickslip.fmu import content_hash, unpacked
+
+    data = fc.write_data(tmp_path / "run.csv", fc.measured(duration, seed=2))
+    spec = load(
+        fc.spec(
+            fc.experiment(data, parameters=dict(options or {})),
+            names,
+            {n: fc.TRUTH[n] for n in names},
+            {n: fc.BOUNDS[n] for n in names if n != "mu_k[1]" or "mu_s[1]" in names},
+        )
+    )
+    fmu = require_fmu().read_bytes()
+    digest = content_hash(fmu)
+    known = {e.name: e.initial for e in spec.estimates}
+    payloads = [payload_of(e, spec.model_description, unpacked(fmu, digest), known) for e in spec.experiments]
+    return Problem(spec, Evaluator(fmu, digest, payloads))
+
+
+def _runs(problem, z, segment, per_point: bool, monkeypatch):
+    monkeypatch.setenv("STICKSLIP_PER_POINT", "1" if per_point else "0")
+    return problem.runs([z], segment)[0]
+
+
+@pytest.mark.parametrize("segment", [None, 0.1])
+def test_the_fits_runs_are_the_per_point_calls_bit_for_bit(tmp_path, monkeypatch, segment):
+    """Single shooting from the measured start, and multiple shooting in 0.1 s segments: every
+    output of every sample, bit for bit, native against per point."""
+    problem = _problem(tmp_path, ["mu_k[1]", "k[3]"])
+    z = problem.transform.z([0.16, 7e5])
+    native = _runs(problem, z, segment, False, monkeypatch)
+    per_point = _runs(problem, z, segment, True, monkeypatch)
+    for a, b in zip(native, per_point, strict=True):
+        assert (a.status, a.reached) == (b.status, b.reached) == ("ok", len(problem.spec.experiments[0].time))
+        np.testing.assert_array_equal(a.values.view(np.uint64), b.values.view(np.uint64))
+
+
+def test_a_discarded_step_is_the_per_point_calls_result(tmp_path, monkeypatch):
+    """Where the FMU discards a step (k[3] = 3e10 at fixed 0.2 ms sub-steps), the native run ends
+    as the per-point one: status discard, the same samples reached and the same numbers."""
+    problem = _problem(tmp_path, ["k[3]"], {"tolerance": 1e-12, "h_min": 2e-4, "h_max": 2e-4})
+    problem.spec.estimates[0].high = 1e11
+    from stickslip.fit.problem import Transform
+
+    problem.transform = Transform(problem.spec.estimates)
+    z = problem.transform.z([3e10])
+    native = _runs(problem, z, None, False, monkeypatch)[0]
+    per_point = _runs(problem, z, None, True, monkeypatch)[0]
+    assert native.status == per_point.status == "discard", (native, per_point)
+    assert native.reached == per_point.reached
+    np.testing.assert_array_equal(native.values.view(np.uint64), per_point.values.view(np.uint64))
+    # The same reason, from the call that made the step: stickslip_run_experiment, fmi2DoStep.
+    assert native.message.startswith("stickslip_run_experiment: step [")
+    assert native.message.split(": ", 1)[1] == per_point.message.split(": ", 1)[1]
+    assert "not completed" in native.message
+
+
+@pytest.mark.parametrize("segment", [None, 0.1])
+def test_the_residuals_jacobian_from_sensitivities_is_their_differences(tmp_path, monkeypatch, segment):
+    """Problem.residual_jacobian (samples x channels x estimates from the FMU, divided by each
+    channel's sigma, stacked channel by channel as the residual vector is, times dtheta/dz of
+    the log and linear scales) against central differences of the residuals of free runs at
+    fixed 0.1 ms sub-steps, where both differentiate the same scheme: within 1e-3 of each
+    column's largest value (the free runs' own noise over a change of 1e-4 of the range),
+    every column exact."""
+    fixed = {"h_min": 1e-4, "h_max": 1e-4, "tolerance": 1e-13}
+    problem = _problem(tmp_path, ["mu_k[1]", "mu_s[1]", "k[3]"], fixed, duration=0.4)
+    monkeypatch.setenv("STICKSLIP_PER_POINT", "0")
+    z = problem.transform.z([0.18, 0.23, 7e5])
+    runs = problem.runs([z], segment, problem.sensitivity_steps(z))[0]
+    J, exact = problem.residual_jacobian(runs, z)
+    assert exact.all(), exact
+    h = 1e-4
+    for j in range(len(z)):
+        plus, minus = np.array(z), np.array(z)
+        plus[j] += h
+        minus[j] -= h
+        rp, rm = problem.residuals([plus, minus], segment)
+        reference = (rp - rm) / (2 * h)
+        scale = np.max(np.abs(reference))
+        assert scale > 0
+        worst = np.max(np.abs(J[:, j] - reference))
+        assert worst <= 1e-3 * scale, (j, worst / scale)
