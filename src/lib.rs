@@ -19,5 +19,6 @@ pub use data::Data;
 pub use error::{ModelError, NonConvergence, StepError};
 pub use model::Model;
 pub use stepper::{
-    DriveInputs, Energy, InitialState, MotorTorques, Phase, RotorStart, Simulator, State, StepStatistics,
+    DriveInputs, Energy, InitialState, MotorTorques, Phase, PlannedSubStep, RotorStart, Simulator, State,
+    StepStatistics,
 };
