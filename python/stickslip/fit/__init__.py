@@ -32,7 +32,6 @@ from ..motion import motor_joints
 from .problem import Evaluator, Problem, payload_of
 from .solve import (
     StartResult,
-    gauss_newton,
     guarded_start,
     jacobian,
     latin_hypercube,
@@ -545,14 +544,10 @@ def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -
             f"fit: at error_tolerance {tol:g} the estimates move by {shift:.2g} standard errors at a tenfold tighter "
             f"one (standard errors {100 * opt.se_change:.0f} % with a 3x Jacobian step): refitting at {tol / 10:g}"
         )
-        z_new = gauss_newton(tighter, opt.z, r, Jz, options) if tighter.exact_jacobians else None
-        if z_new is None:
-            z_new = refine(tighter, opt.z, options)[0].x
-            entry["refitted"] = "least squares"
-        else:
-            entry["refitted"] = "Gauss-Newton"
+        res, _ = refine(tighter, opt.z, options)
         problem = tighter
-        opt = _at_optimum(problem, z_new, options)
+        opt = _at_optimum(problem, res.x, options)
+        entry["refitted"] = True
     return problem, opt, record
 
 

@@ -155,40 +155,6 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     return result, history
 
 
-# Gauss-Newton from an answer: at most this many steps, until a step moves no estimate by more
-# than GN_SMALL of the distance its Jacobian column says one unit of cost is.
-GN_STEPS = 4
-GN_SMALL = 1e-3
-
-
-def gauss_newton(problem: Problem, z, r, Jz, options: dict):
-    """Single shooting from z by Gauss-Newton steps on the FMU's sensitivities (``r`` and ``Jz``
-    at z), each taken only where it lowers the cost; the point it ends at, or None where the
-    first step does not lower the cost or the loss is not linear (then least squares
-    refits). From an answer at a nearby error tolerance the minimum is a step or two away, where
-    a trust region spends a dozen Jacobians on its stopping tests."""
-    if options["loss"] != "linear":
-        return None
-    cost = 0.5 * float(r @ r)
-    moved = False
-    for _ in range(GN_STEPS):
-        step = np.linalg.lstsq(Jz, -r, rcond=None)[0]
-        z_new = np.clip(z + step, 0.0, 1.0)
-        runs = problem.runs([z_new])[0]
-        if Problem.failed(runs):
-            break
-        r_new = problem.residual(runs)
-        cost_new = 0.5 * float(r_new @ r_new)
-        if not cost_new < cost:
-            break
-        z, r, cost, moved = z_new, r_new, cost_new, True
-        # One unit of cost along column j is 1/|J_j| in z_j.
-        if np.all(np.abs(step) * np.linalg.norm(Jz, axis=0) <= GN_SMALL):
-            break
-        Jz, _ = jacobian(problem, z, r, None, options["diff_step"])
-    return z if moved else None
-
-
 # Single shooting's Jacobian steps, as fractions of ``diff_step``: coarse to fine.
 STEP_FACTORS = (1.0, 0.3, 0.1, 0.03)
 
