@@ -6,7 +6,8 @@ through fmpy's FMU2Slave: the life-cycle calls in any order, steps with good and
 communication points and step sizes, sets of any variable (inputs, parameters, settings,
 outputs, Booleans) to extreme values (+-1e300, +-1e-300, +-0, NaN, +-inf and ordinary
 ones), input derivatives, FMU states taken, restored, serialized, mutated (bit flips,
-truncation, extension, zeros) and deserialized. An FMU with motor drives (inputs tau_m[i],
+truncation, extension, zeros) and deserialized, and whole experiments in one call
+(``stickslip_run_experiment``: fuzzed points, inputs, outputs and sensitivities, in any state). An FMU with motor drives (inputs tau_m[i],
 e.g. one of models/reference_rrpr_motor.toml) also gets calls aimed at them: tau_m and its
 derivatives of orders 0 to 3, the fixed gear_ratio and start values theta_m_start,
 omega_m_start, static_start in any state, the tunable J_m, b_m, tau_c, and starts from a
@@ -150,6 +151,8 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         "states_restored": 0,
         "corrupt_urdf_refused": 0,
         "motor_calls": 0,
+        "experiments": 0,
+        "experiments_ok": 0,
     }
     # Motor drives: their torque inputs, and the motor variables by kind.
     by_name = {v.name: v for v in md.modelVariables}
@@ -231,6 +234,55 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
         "start",
     ]
     weights = [40, 15, 12, 6, 3, 2, 2, 2, 3, 3, 3, 4, 2, 1, 1, 2, 3]
+    actions, weights = [*actions, "experiment"], [*weights, 3]
+
+    def experiment_call():
+        """stickslip_run_experiment with fuzzed points, inputs, outputs and sensitivities: any
+        status but Fatal; an OK one has finite outputs at every point."""
+        import numpy as np
+
+        from stickslip import experiment
+
+        nonlocal t
+        counts["experiments"] += 1
+        if rng.random() < 0.5:
+            # From the start, as the fit calls it: reset, set up, values set.
+            slave.reset()
+            slave.setupExperiment(startTime=0.0)
+            t = 0.0
+        n = rng.randint(1, 40)
+        h = rng.choice(STEPS)
+        start = t if rng.random() < 0.8 else rng.choice([t + 1e-3, -1.0, math.nan])
+        times = [start + k * h for k in range(n)]
+        if rng.random() < 0.1:
+            times[rng.randrange(n)] = rng.choice([math.nan, math.inf, -1.0, start])
+        drive = [[rng.gauss(0.0, 0.2) for _ in inputs] for _ in range(n)]
+        if rng.random() < 0.2:  # an extreme input somewhere
+            drive[rng.randrange(n)][rng.randrange(len(inputs))] = _value(rng, 0.1)
+        outs = [rng.choice(reals).valueReference for _ in range(rng.randint(0, 4))]
+        wrt = [rng.choice(reals).valueReference for _ in range(rng.randint(0, 2) if rng.random() < 0.3 else 0)]
+        steps = [rng.choice([1e-6, 1e-3, 0.0, -1.0, math.nan, 1e300]) for _ in wrt]
+        r = experiment.run(
+            slave,
+            times,
+            [v.valueReference for v in inputs],
+            drive,
+            output_vrs=outs,
+            sensitivity_vrs=wrt,
+            steps=steps,
+            central=rng.random() < 0.5,
+            threads=rng.choice([0, 1, 2, 5]),
+        )
+        if r.status not in (0, 1, 2, 3):
+            violations.append(f"seed {seed}: stickslip_run_experiment returned status {r.status}")
+        if r.status <= 1:
+            counts["experiments_ok"] += 1
+            values = np.asarray(r.outputs)
+            if not np.all(np.isfinite(values)):
+                violations.append(f"seed {seed}: stickslip_run_experiment OK with non-finite outputs")
+            t = times[-1]
+        else:
+            t = math.nan
     if corrupt.urdfs:
         actions, weights = [*actions, "corrupt_urdf"], [*weights, 2]
     if motor["torque"]:
@@ -338,6 +390,8 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
                 corrupt_instantiation()
             elif action == "motor":
                 motor_call()
+            elif action == "experiment":
+                experiment_call()
             counts["ok"] += 1
         except FMICallException as e:
             status = getattr(e, "status", None)

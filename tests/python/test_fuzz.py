@@ -41,3 +41,4 @@ def test_seeded_fuzz_run_finds_no_crash_hang_or_silent_non_finite_output(fmu):
     assert counts["states_mutated"] > states and counts["states_restored"] > states, counts
     assert counts["corrupt_urdf_refused"] >= corrupt, counts
     assert counts["motor_calls"] >= motor, counts
+    assert counts["experiments_ok"] >= 5, counts  # stickslip_run_experiment fuzzed too
