@@ -7,8 +7,9 @@ communication points and step sizes, sets of any variable (inputs, parameters, s
 outputs, Booleans) to extreme values (+-1e300, +-1e-300, +-0, NaN, +-inf and ordinary
 ones), input derivatives, FMU states taken, restored, serialized, mutated (bit flips,
 truncation, extension, zeros) and deserialized, and whole experiments in one call
-(``stickslip_run_experiment``: fuzzed points, inputs, outputs and sensitivities, in any state). An FMU with motor drives (inputs tau_m[i],
-e.g. one of models/reference_rrpr_motor.toml) also gets calls aimed at them: tau_m and its
+(``stickslip_run_experiment``: fuzzed points, inputs, outputs and sensitivities, in any
+state). An FMU with motor drives (inputs tau_m[i], e.g. one of
+models/reference_rrpr_motor.toml) also gets calls aimed at them: tau_m and its
 derivatives of orders 0 to 3, the fixed gear_ratio and start values theta_m_start,
 omega_m_start, static_start in any state, the tunable J_m, b_m, tau_c, and starts from a
 static equilibrium (static_start) or given rotor states. An FMU of a URDF arm (a URDF in its
