@@ -48,8 +48,8 @@ def main() -> None:
     p.add_argument(
         "--jacobian",
         choices=("sensitivities", "differences"),
-        default="sensitivities",
-        help="[options] jacobian: the FMU's sensitivities (default) or differences of free runs",
+        default="differences",
+        help="[options] jacobian: differences of free runs (the default) or the FMU's sensitivities",
     )
     suite = p.add_argument_group("the identification benchmark (--suite)")
     suite.add_argument("--suite", action="store_true", help="run the identification benchmark instead")
