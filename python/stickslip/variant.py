@@ -27,7 +27,7 @@ cover [0, t_end]).
 The points are run inside the FMU's library when it has ``stickslip_run_experiment``
 (:mod:`stickslip.experiment`): the same FMI calls as the per-point loop, with the inputs of
 every point computed beforehand (once per motion in a process), the outputs the same bit
-for bit; with a ``timeout``, in chunks of about :data:`CHUNK_WALL` s of wall time, checked
+for bit; with a ``timeout``, in parts of about :data:`CHUNK_WALL` s of wall time, checked
 between them. Older FMUs, fixed sub-steps (see :func:`_native_exact`), a timeout with a
 library that cannot go on from step mode (:func:`_goes_on`) and ``STICKSLIP_PER_POINT=1``
 take the per-point loop through fmpy.
@@ -50,8 +50,13 @@ from . import experiment
 from .fmu import LogCapture, _input_values, communication_points, initialize, input_references, set_value, unpacked
 
 STATUS_NAMES = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
-CHUNK_WALL = 0.1  # s of wall time a native call aims at when a timeout is to be checked
-FIRST_CHUNK = 8  # points of the first native call with a timeout (its speed sizes the next)
+# With a timeout, the native calls' parts: each aims at CHUNK_WALL s of wall time at the last
+# part's speed (a call costs about 60 us more: 0.3 %), and has at most GROWTH times the last
+# one's points, the first FIRST_CHUNK: a variant that slows down (an arm at rest at first,
+# sticking later) overshoots its timeout by about one part, not by a speed misjudged manyfold.
+CHUNK_WALL = 0.02
+FIRST_CHUNK = 8
+GROWTH = 4
 
 
 @functools.cache
@@ -275,9 +280,9 @@ def _per_point(slave, p: _Prepared, parameters, motion, stop_time, step, timeout
 
 def _native_points(slave, p: _Prepared, parameters, motion, stop_time, step, timeout, wall, row, log) -> np.ndarray:
     """The points by ``stickslip_run_experiment``: one call, or with a ``timeout`` calls of
-    about :data:`CHUNK_WALL` s each (the next sized by the last one's speed), the timeout
-    checked between them. The rows of the sampled outputs (points x outputs), as the per-point
-    loop's."""
+    about :data:`CHUNK_WALL` s each (the next sized by the last one's speed, at most
+    :data:`GROWTH` times its points), the timeout checked between them. The rows of the
+    sampled outputs (points x outputs), as the per-point loop's."""
     from fmpy.fmi1 import FMICallException
 
     try:
@@ -324,7 +329,7 @@ def _native_points(slave, p: _Prepared, parameters, motion, stop_time, step, tim
             _timed_out(row, row["t_end"], timeout)
             break
         rate = (last - first) / max(now - began, 1e-6)  # points per second
-        chunk = int(rate * min(CHUNK_WALL, timeout - (now - wall))) + 1
+        chunk = min(int(rate * min(CHUNK_WALL, timeout - (now - wall))) + 1, GROWTH * (last - first))
         first = last
     return out[:done]
 
