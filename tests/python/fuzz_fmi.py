@@ -284,6 +284,7 @@ def run_batch(fmu: str, seed: int, calls: int) -> dict:
             t = times[-1]
         else:
             t = math.nan
+
     if corrupt.urdfs:
         actions, weights = [*actions, "corrupt_urdf"], [*weights, 2]
     if motor["torque"]:
