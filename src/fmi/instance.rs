@@ -31,6 +31,7 @@ type FiniteCheck = Result<(), (String, f64)>;
 const TIME_TOLERANCE: f64 = 1e-9;
 
 /// An instance of the FMU.
+#[derive(Clone)]
 pub(crate) struct Instance {
     variables: Vec<Variable>,
     model_hash: u128,
@@ -756,27 +757,7 @@ impl Instance {
     /// A copy of this instance, values, life-cycle state and engine
     /// included, that logs nothing.
     pub(crate) fn silent_copy(&self) -> Instance {
-        Instance {
-            variables: self.variables.clone(),
-            model_hash: self.model_hash,
-            guid: self.guid.clone(),
-            base: self.base.clone(),
-            sim: self.sim.clone(),
-            lifecycle: self.lifecycle,
-            start_time: self.start_time,
-            stop_time: self.stop_time,
-            inputs: self.inputs.clone(),
-            torques: self.torques.clone(),
-            use_start_values: self.use_start_values,
-            q_start: self.q_start.clone(),
-            qd_start: self.qd_start.clone(),
-            theta_m_start: self.theta_m_start.clone(),
-            omega_m_start: self.omega_m_start.clone(),
-            static_start: self.static_start,
-            stale: self.stale,
-            ignored_derivatives_reported: self.ignored_derivatives_reported,
-            logger: Logger::silent(),
-        }
+        Instance { logger: Logger::silent(), ..self.clone() }
     }
 
     /// The current value of `vr`, a Real parameter or start value: what a

@@ -937,6 +937,52 @@ fn experiment_inputs(n: usize) -> (Vec<f64>, Vec<fmi2ValueReference>, Vec<f64>) 
 
 const EXPERIMENT_OUTPUTS: [&str; 4] = ["q[1]", "q[3]", "qd[1]", "F_friction[1]"];
 
+/// stickslip_run_experiment without motor torques, on slices: (status,
+/// points reached).
+#[allow(clippy::too_many_arguments)]
+fn call_run_experiment(
+    c: fmi2Component,
+    time: &[f64],
+    drive_vrs: &[fmi2ValueReference],
+    drive: &[f64],
+    outputs: &[fmi2ValueReference],
+    values: &mut [f64],
+    wrt: &[fmi2ValueReference],
+    steps: &[f64],
+    central: bool,
+    sens: &mut [f64],
+    departures: &mut [u64],
+) -> (fmi2Status, usize) {
+    let mut reached = usize::MAX;
+    let status = unsafe {
+        stickslip_run_experiment(
+            c,
+            time.len(),
+            time.as_ptr(),
+            drive_vrs.len(),
+            drive_vrs.as_ptr(),
+            drive.as_ptr(),
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
+            std::ptr::null(),
+            std::ptr::null(),
+            outputs.len(),
+            outputs.as_ptr(),
+            values.as_mut_ptr(),
+            wrt.len(),
+            wrt.as_ptr(),
+            steps.as_ptr(),
+            fmi2Boolean::from(central),
+            2,
+            sens.as_mut_ptr(),
+            departures.as_mut_ptr(),
+            &mut reached,
+        )
+    };
+    (status, reached)
+}
+
 /// (status, outputs, sensitivities, departures, reached) of
 /// stickslip_run_experiment on `c` for `n` points, with the sensitivities
 /// to `wrt` (steps `steps`) when not empty.
@@ -953,33 +999,19 @@ fn run_experiment(
     let mut values = vec![f64::NAN; n * outputs.len()];
     let mut sens = vec![f64::NAN; n * outputs.len() * wrt.len()];
     let mut departures = vec![0u64; wrt.len()];
-    let mut reached = 0usize;
-    let status = unsafe {
-        stickslip_run_experiment(
-            c,
-            n,
-            time.as_ptr(),
-            drive_vrs.len(),
-            drive_vrs.as_ptr(),
-            drive.as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-            std::ptr::null(),
-            std::ptr::null(),
-            outputs.len(),
-            outputs.as_ptr(),
-            values.as_mut_ptr(),
-            wrt.len(),
-            wrt_vrs.as_ptr(),
-            steps.as_ptr(),
-            fmi2Boolean::from(central),
-            2,
-            sens.as_mut_ptr(),
-            departures.as_mut_ptr(),
-            &mut reached,
-        )
-    };
+    let (status, reached) = call_run_experiment(
+        c,
+        &time,
+        &drive_vrs,
+        &drive,
+        &outputs,
+        &mut values,
+        &wrt_vrs,
+        steps,
+        central,
+        &mut sens,
+        &mut departures,
+    );
     (status, values, sens, departures, reached)
 }
 
@@ -1051,34 +1083,8 @@ fn an_experiment_goes_on_from_step_mode_at_the_fmus_time() {
     let outputs: Vec<_> = EXPERIMENT_OUTPUTS.iter().map(|n| vr(n)).collect();
     let call = |c, range: std::ops::Range<usize>, values: &mut [f64]| {
         let m = drive_vrs.len();
-        let mut reached = 0;
-        let status = unsafe {
-            stickslip_run_experiment(
-                c,
-                range.len(),
-                time[range.clone()].as_ptr(),
-                m,
-                drive_vrs.as_ptr(),
-                drive[range.start * m..range.end * m].as_ptr(),
-                0,
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                std::ptr::null(),
-                outputs.len(),
-                outputs.as_ptr(),
-                values.as_mut_ptr(),
-                0,
-                std::ptr::null(),
-                std::ptr::null(),
-                0,
-                0,
-                std::ptr::null_mut(),
-                std::ptr::null_mut(),
-                &mut reached,
-            )
-        };
-        (status, reached)
+        let (time, drive) = (&time[range.clone()], &drive[range.start * m..range.end * m]);
+        call_run_experiment(c, time, &drive_vrs, drive, &outputs, values, &[], &[], false, &mut [], &mut [])
     };
     let (whole, _) = configured(&[]);
     let mut all = vec![f64::NAN; 200 * 4];
@@ -1125,34 +1131,8 @@ fn bad_experiments_are_errors_naming_the_problem() {
     let (c, log) = configured(&[]);
     let time = [0.0, 1e-3, 1e-3];
     let mut out = [0.0; 3];
-    let mut reached = 7;
     let o = [vr("q[1]")];
-    let status = unsafe {
-        stickslip_run_experiment(
-            c,
-            3,
-            time.as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-            std::ptr::null(),
-            std::ptr::null(),
-            1,
-            o.as_ptr(),
-            out.as_mut_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-            0,
-            0,
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            &mut reached,
-        )
-    };
+    let (status, reached) = call_run_experiment(c, &time, &[], &[], &o, &mut out, &[], &[], false, &mut [], &mut []);
     assert_eq!((status, reached), (ERROR, 0));
     assert!(last_message(&log).2.contains("the points must increase"), "{:?}", last_message(&log));
     unsafe { fmi2FreeInstance(c) };
