@@ -69,14 +69,14 @@ def test_a_start_that_fails_keeps_the_others(data, tmp_path, capsys, monkeypatch
     reason; the others give the answer."""
     from stickslip.fit import solve
 
-    real = solve.run_start
+    real = solve._single_stage
 
     def failing(problem, start, *args, **kw):
         if start.origin == "latin hypercube 1":
             raise FloatingPointError("injected into this start")
         return real(problem, start, *args, **kw)
 
-    monkeypatch.setattr(solve, "run_start", failing)
+    monkeypatch.setattr(solve, "_single_stage", failing)
     spec = fc.spec(fc.experiment(data), ["mu_k[1]"], starts=2, max_evaluations=4)
     rc, stdout, stderr, out = _cli(spec, tmp_path, capsys)
     _one_line_and_no_traceback(rc, stdout, stderr)

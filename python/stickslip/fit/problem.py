@@ -95,6 +95,9 @@ class Evaluator:
         self.runs = 0  # experiments run (each of them with sensitivities counts once, in jacobians too)
         self.jacobians = 0
         self._lock = threading.Lock()
+        # The Dask priority of the calling thread's runs (higher first): the fit's best-ranked
+        # start runs ahead of the others (stickslip.fit.solve.run_starts).
+        self.priority = threading.local()
         if client is not None:
             from ..sweep import FmuPlugin
 
@@ -114,7 +117,16 @@ class Evaluator:
                 for i, p, s in jobs
             ]
         futures = [
-            self.client.submit(run, self.digest, self.remote[i], p, s, sensitivities=sensitivities, pure=False)
+            self.client.submit(
+                run,
+                self.digest,
+                self.remote[i],
+                p,
+                s,
+                sensitivities=sensitivities,
+                pure=False,
+                priority=getattr(self.priority, "value", 0),
+            )
             for i, p, s in jobs
         ]
         return self.client.gather(futures)

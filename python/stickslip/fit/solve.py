@@ -24,13 +24,18 @@ equation-error estimate is a candidate of its own and multiple shooting can only
 
 The Jacobian is a forward difference of step ``diff_step`` in z (a fraction of each
 parameter's bound range, or of its log range), taken backward at the upper bound and where
-the forward point is refused or discarded; its p runs go to the cluster at once. The starts
-run in threads of this process, so their runs fill the cluster together.
+the forward point is refused or discarded; its p runs go to the cluster at once.
+
+A stage also ends where the Gauss-Newton step is a small fraction of its standard errors
+(:func:`settled`). The starts run in threads of this process, so their runs fill the cluster
+together; after each multiple-shooting stage a start that ended it in the same basin as a
+better-ranked start is not followed further (:class:`_Meeting`, deterministic whatever the load).
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -54,6 +59,10 @@ class StartResult:
     status: str = ""
     message: str = ""
     history: list = field(default_factory=list)
+    z_start: np.ndarray = None  # z of the start point
+    se: np.ndarray = None  # standard errors in z at the last stage's last Jacobian
+    merged_into: StartResult = None  # the start this one joined (status "merged")
+    t0: float = 0.0
 
 
 def jacobian(problem: Problem, z, r0, segment: float | None, step: float) -> tuple:
@@ -113,18 +122,71 @@ def differences(problem: Problem, z, r0, segment: float | None, step: float, col
 # are not blurred by a difference's, multiple shooting stops at 1e-3 (docs/performance.md,
 # "Fits": what it saves, and that the answers stay).
 TOLERANCE = {"multiple": 1e-5, "single": 1e-10, "multiple_exact": 1e-3}
+# A stage also ends as soon as the Gauss-Newton step from its point is smaller than this many
+# of its own standard errors in every free parameter (:func:`settled`): the estimate would not
+# move by more in any further iteration of a quadratic model, and the trust region's own
+# tolerances above spend 2-4 more Jacobians on moves of 1e-3 standard errors (measured on
+# scripts/bench_fit.py; docs/performance.md, "Fits").
+SETTLED = {"multiple": 0.2, "single": 0.05}
+
+
+class _Settled(Exception):
+    """Raised inside least_squares' Jacobian where :func:`settled` ends the stage."""
+
+    def __init__(self, z, shift: float):
+        super().__init__()
+        self.z, self.shift = np.array(z, dtype=np.float64), shift
+
+
+def settled(J, r, z, weights=None) -> tuple:
+    """(shift, se): the Gauss-Newton step from z in units of its standard errors (the largest
+    over the parameters that are not held at a bound by the gradient), and the standard errors
+    in z. The standard errors are those of the residuals as given (normalized by their sigma),
+    or of the cost's own noise scale where that is smaller, so that a fit whose sigma are too
+    large does not stop early. inf where the Gauss-Newton matrix is singular."""
+    J = np.asarray(J, dtype=np.float64)
+    r = np.asarray(r, dtype=np.float64)
+    if weights is not None:
+        J, r = J * weights[:, None], r * weights
+    m, p = J.shape
+    g = J.T @ r  # the cost's gradient
+    z = np.asarray(z, dtype=np.float64)
+    held = ((z <= 1e-12) & (g > 0.0)) | ((z >= 1.0 - 1e-12) & (g < 0.0))
+    free = ~held
+    se = np.full(p, np.inf)
+    if not free.any():
+        return 0.0, se
+    Jf = J[:, free]
+    H = Jf.T @ Jf
+    try:
+        inv = np.linalg.inv(H)
+        step = -inv @ (Jf.T @ r)
+    except np.linalg.LinAlgError:
+        return math.inf, se
+    scale = min(1.0, float(r @ r) / max(m - p, 1))
+    se[free] = np.sqrt(np.maximum(np.diag(inv) * scale, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shift = np.abs(step) / se[free]
+    if not np.all(np.isfinite(shift)):
+        return math.inf, se
+    return float(shift.max()), se
 
 
 def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nfev: int | None = None) -> tuple:
     """least_squares from z0 on the single-shooting (``segment=None``) or multiple-shooting
-    cost: (OptimizeResult, history)."""
-    from scipy.optimize import least_squares
+    cost: (OptimizeResult, history). The result carries ``se``, the standard errors in z at the
+    last Jacobian (None before one), and ends early where the point has settled (SETTLED)."""
+    from scipy.optimize import OptimizeResult, least_squares
+
+    from .uncertainty import rho_prime, robust_cost
 
     cache = {}
     history = []
-    tol = TOLERANCE["single" if segment is None else "multiple"]
+    kind = "single" if segment is None else "multiple"
+    tol = TOLERANCE[kind]
     if segment is not None and problem.exact_jacobians:
         tol = TOLERANCE["multiple_exact"]
+    last = {"se": None, "njev": 0}
 
     def fun(z):
         key = tuple(np.round(z, 15))
@@ -135,23 +197,43 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
         return cache[key]
 
     def jac(z):
-        J, _ = jacobian(problem, z, fun(z), segment, options["diff_step"])
+        r = fun(z)
+        J, _ = jacobian(problem, z, r, segment, options["diff_step"])
+        last["njev"] += 1
+        weights = None if options["loss"] == "linear" else np.sqrt(rho_prime(r, options["loss"], options["f_scale"]))
+        shift, last["se"] = settled(J, r, np.clip(z, 0.0, 1.0), weights)
+        if shift <= SETTLED[kind] and np.all(np.isfinite(r)):
+            raise _Settled(z, shift)
         return J
 
-    result = least_squares(
-        fun,
-        np.clip(z0, 0.0, 1.0),
-        jac=jac,
-        bounds=(0.0, 1.0),
-        method="trf",
-        loss=options["loss"],
-        f_scale=options["f_scale"],
-        x_scale="jac",
-        max_nfev=max_nfev or options["max_evaluations"],
-        xtol=tol,
-        ftol=tol,
-        gtol=tol,
-    )
+    try:
+        result = least_squares(
+            fun,
+            np.clip(z0, 0.0, 1.0),
+            jac=jac,
+            bounds=(0.0, 1.0),
+            method="trf",
+            loss=options["loss"],
+            f_scale=options["f_scale"],
+            x_scale="jac",
+            max_nfev=max_nfev or options["max_evaluations"],
+            xtol=tol,
+            ftol=tol,
+            gtol=tol,
+        )
+    except _Settled as done:
+        r = fun(done.z)
+        result = OptimizeResult(
+            x=np.clip(done.z, 0.0, 1.0),
+            cost=robust_cost(r, options["loss"], options["f_scale"]),
+            fun=r,
+            nfev=len(history),
+            njev=last["njev"],
+            status=5,
+            success=True,
+            message=f"settled: the Gauss-Newton step is {done.shift:.2g} of a standard error",
+        )
+    result.se = last["se"]
     return result, history
 
 
@@ -206,14 +288,18 @@ def segment_lengths(problem: Problem, first: float) -> list:
     return out
 
 
-def run_start(problem: Problem, start: StartResult, multiple: bool, options: dict, say=None) -> StartResult:
-    """One start through the continuation and single shooting; ``say(line)`` reports each
-    stage as it ends."""
-    say = say or (lambda line: None)
-    t0 = time.perf_counter()
-    z0 = problem.transform.z(list(start.initial.values()))
-    z, nfev = z0, 0
-    at_start = problem.runs([z0])[0]
+# Two starts whose multiple-shooting stage ends within MEET of the stage's standard errors of
+# each other in every parameter are in the same basin: the one that comes later in the starts'
+# order (by the cost at their start points) is not followed further (``merged``), since from
+# the same point the stages to come are the same.
+MEET = 0.5
+
+
+def _begin(problem: Problem, start: StartResult, say) -> None:
+    """The start's single-shooting cost at its own point; ``dropped`` where the FMU refuses it."""
+    start.z_start = problem.transform.z(list(start.initial.values()))
+    start.z = start.z_start
+    at_start = problem.runs([start.z_start])[0]
     refused = [r for r in at_start if r.status == "refused"]
     if refused:
         # Not a point of the model: the optimizer would only walk the penalty's plateau.
@@ -221,23 +307,32 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
         start.status = "dropped"
         start.message = f"the FMU refuses its parameters: {' '.join(refused[0].message.split())}"
         say(f"fit: start {start.origin!r} dropped: {start.message}")
-        return start
+        return
     start.start_cost = problem.cost_of(at_start)
-    if multiple:
-        for length in segment_lengths(problem, options["segment"]):
-            res, hist = local_fit(problem, z, length, options)
-            z, nfev = res.x, nfev + res.nfev
-            start.ms_cost = float(res.cost)
-            start.history += [(f"multiple {length:g} s", *h) for h in hist]
-            say(
-                f"fit: start {start.origin!r}: multiple shooting, {length:g} s segments: cost {res.cost:.6g} "
-                f"({res.nfev} iterations, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - t0:.0f} s)"
-            )
-        start.continuation_cost = problem.cost(z)
-        if not start.continuation_cost <= start.start_cost:
-            z = z0  # the continuation made the simulation error worse: single shooting from the start
-    res, nfev = refine(problem, z, options, start, nfev)
-    start.z, start.cost, start.nfev = res.x, float(res.cost), nfev
+
+
+def _multiple_stage(problem: Problem, start: StartResult, length: float, options: dict, say) -> None:
+    res, hist = local_fit(problem, start.z, length, options)
+    start.z, start.nfev, start.se = res.x, start.nfev + res.nfev, res.se
+    start.ms_cost = float(res.cost)
+    start.history += [(f"multiple {length:g} s", *h) for h in hist]
+    say(
+        f"fit: start {start.origin!r}: multiple shooting, {length:g} s segments: cost {res.cost:.6g} "
+        f"({res.nfev} iterations, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - start.t0:.0f} s)"
+    )
+
+
+def _continued(problem: Problem, start: StartResult) -> None:
+    """The single-shooting cost where the continuation ended; single shooting goes on from the
+    start point instead where that is lower."""
+    start.continuation_cost = problem.cost(start.z)
+    if not start.continuation_cost <= start.start_cost:
+        start.z = start.z_start  # the continuation made the simulation error worse
+
+
+def _single_stage(problem: Problem, start: StartResult, options: dict, say) -> None:
+    res, start.nfev = refine(problem, start.z, options, start, start.nfev)
+    start.z, start.cost = res.x, float(res.cost)
     start.step = res.step_factor * options["diff_step"]
     start.status, start.message = ("converged" if res.status > 0 else "stopped"), res.message
     failed = [r for r in problem.runs([res.x])[0] if r.status != "ok"]
@@ -248,30 +343,182 @@ def run_start(problem: Problem, start: StartResult, multiple: bool, options: dic
     after = f", after the continuation {start.continuation_cost:.6g}" if start.continuation_cost is not None else ""
     say(
         f"fit: start {start.origin!r}: cost {start.cost:.6g} (at its start {start.start_cost:.6g}{after}), "
-        f"{start.status}, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - t0:.0f} s"
+        f"{start.status}, {problem.evaluator.runs} FMU runs so far, {time.perf_counter() - start.t0:.0f} s"
     )
-    return start
 
 
-def guarded_start(problem: Problem, start: StartResult, multiple: bool, options: dict, say=None) -> StartResult:
-    """:func:`run_start`, whose failure (an exception anywhere inside it) ends this start only:
-    it comes back ``failed`` with the reason, without a cost, and the other starts go on."""
+def _guarded(start: StartResult, stage, say) -> None:
+    """``stage()``, whose failure (an exception anywhere inside it) ends this start only: it
+    comes back ``failed`` with the reason, without a cost, and the other starts go on."""
     try:
-        return run_start(problem, start, multiple, options, say)
+        stage()
     except Exception as e:  # noqa: BLE001 -- one start's failure must not end the fit
         start.z, start.cost, start.status = None, math.inf, "failed"
         start.message = f"{type(e).__name__}: {' '.join(str(e).split())}"
-        (say or (lambda line: None))(f"fit: start {start.origin!r} failed: {start.message}")
-        return start
+        say(f"fit: start {start.origin!r} failed: {start.message}")
+
+
+def _meet(a: StartResult, b: StartResult) -> bool:
+    if a.se is None or b.se is None or a.z is None or b.z is None:
+        return False
+    scale = np.maximum(a.se, b.se)
+    return bool(np.all(np.isfinite(scale)) and np.all(np.abs(a.z - b.z) <= MEET * scale))
+
+
+class _Meeting:
+    """Where the starts meet after each multiple-shooting stage. The starts are ranked by their
+    single-shooting cost at their start points (then by their order); after stage i a start
+    waits for the starts ranked before it to end stage i (or to end), and is ``merged`` into the
+    first of them that went on from stage i within MEET standard errors of it. A start never
+    waits for one ranked after it, so the best start runs ahead, and which start merges into
+    which does not depend on which thread or worker was faster: fit.json is the same at any
+    load (tests/python/test_fit_reproducible.py)."""
+
+    def __init__(self, starts: list):
+        self.cv = threading.Condition()
+        live = [s for s in starts if not s.status]
+        order = sorted(range(len(live)), key=lambda k: (live[k].start_cost, k))
+        self.ahead = {id(live[k]): [live[j] for j in order[:r]] for r, k in enumerate(order)}
+        self.progress = {id(s): -1 for s in live}  # the last stage it ended and went on from
+        self.points = {}  # (id, stage) -> (z, se) where it went on from the stage
+
+    def after_stage(self, s: StartResult, stage: int, length: float, say) -> bool:
+        """True where ``s`` goes on; False where it merged (then see :meth:`revive`)."""
+        with self.cv:
+            ahead = self.ahead[id(s)]
+            self.cv.wait_for(lambda: all(self.progress[id(a)] >= stage for a in ahead))
+            for a in ahead:
+                point = self.points.get((id(a), stage))
+                if point is not None and _meet(s.z, s.se, *point):
+                    s.status, s.cost, s.merged_into = "merged", math.inf, a
+                    s.message = (
+                        f"ended the {length:g} s multiple-shooting stage within {MEET:g} standard errors of "
+                        f"start {a.origin!r}: not followed further"
+                    )
+                    say(f"fit: start {s.origin!r} {s.message}")
+                    self._end(s)
+                    return False
+            self.points[(id(s), stage)] = (np.array(s.z), None if s.se is None else np.array(s.se))
+            self.progress[id(s)] = stage
+            self.cv.notify_all()
+            return True
+
+    def continued(self, s: StartResult) -> None:
+        """``s`` has its continuation cost: the starts merged into it may decide (:meth:`revive`)."""
+        with self.cv:
+            self.cv.notify_all()
+
+    def revive(self, s: StartResult, say) -> bool:
+        """Whether the merged ``s`` goes on alone after all: from its start point where that has
+        a lower single-shooting cost than where the start it joined ended the continuation (as
+        it would have alone: :func:`_continued`), or from where it merged where that start
+        failed."""
+
+        def root():
+            r = s.merged_into
+            while r.status == "merged":
+                r = r.merged_into
+            return r
+
+        with self.cv:
+            self.cv.wait_for(lambda: root().continuation_cost is not None or self.progress[id(root())] == math.inf)
+            r = root()
+            if r.continuation_cost is not None and s.start_cost < r.continuation_cost:
+                s.z, s.continuation_cost = s.z_start, r.continuation_cost
+                where = "its start point, whose cost is lower than where the continuation ended"
+            elif r.continuation_cost is None:
+                s.continuation_cost = None
+                where = f"where it merged, since start {r.origin!r} ended without a continuation ({r.status})"
+            else:
+                return False
+            s.status, s.message = "", ""
+            say(f"fit: start {s.origin!r} goes on alone from {where}")
+            return True
+
+    def end(self, s: StartResult) -> None:
+        with self.cv:
+            self._end(s)
+
+    def _end(self, s: StartResult) -> None:
+        if id(s) in self.progress:
+            self.progress[id(s)] = math.inf
+        self.cv.notify_all()
+
+
+def _meet(z, se, z_other, se_other) -> bool:
+    if se is None or se_other is None or z is None:
+        return False
+    scale = np.maximum(se, se_other)
+    return bool(np.all(np.isfinite(scale)) and np.all(np.abs(z - z_other) <= MEET * scale))
 
 
 def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, threads: int, say=None) -> list:
-    """Every start (in ``threads`` threads sharing the evaluator), results in the same order;
-    a start that fails is returned ``failed`` with its reason (:func:`guarded_start`)."""
-    if threads <= 1 or len(starts) == 1:
-        return [guarded_start(problem, s, multiple, options, say) for s in starts]
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(lambda s: guarded_start(problem, s, multiple, options, say), starts))
+    """Every start through the continuation and single shooting, results in the same order.
+    With ``threads`` > 1 each start runs in a thread of its own (sharing the evaluator); after
+    each multiple-shooting stage a start that ended it in the same basin as a better-ranked one
+    is ``merged`` and not followed further (:class:`_Meeting`). A start that fails is returned
+    ``failed`` with its reason, and the others go on. ``say(line)`` reports each stage."""
+    say = say or (lambda line: None)
+    parallel = threads > 1 and len(starts) > 1
+    lengths = segment_lengths(problem, options["segment"]) if multiple else []
+
+    def each(work, items) -> None:
+        if parallel:
+            with ThreadPoolExecutor(max_workers=len(items)) as pool:
+                list(pool.map(work, items))
+        else:
+            for s in items:
+                work(s)
+
+    t0 = time.perf_counter()
+    for s in starts:
+        s.t0 = t0
+    each(lambda s: _guarded(s, lambda: _begin(problem, s, say), say), starts)
+    meeting = _Meeting(starts)
+
+    def follow(s: StartResult) -> None:
+        if s.status:
+            return
+        # Its runs wait behind those of the starts ranked before it.
+        problem.evaluator.priority.value = -len(meeting.ahead[id(s)])
+        try:
+            alone = False
+            for stage, length in enumerate(lengths):
+                _multiple_stage(problem, s, length, options, say)
+                if not meeting.after_stage(s, stage, length, say):
+                    if not meeting.revive(s, say):
+                        return
+                    alone = True
+                    break
+            if multiple and not alone:
+                _continued(problem, s)
+                meeting.continued(s)
+            _single_stage(problem, s, options, say)
+        except Exception as e:  # noqa: BLE001 -- one start's failure must not end the fit
+            s.z, s.cost, s.status = None, math.inf, "failed"
+            s.message = f"{type(e).__name__}: {' '.join(str(e).split())}"
+            say(f"fit: start {s.origin!r} failed: {s.message}")
+        finally:
+            meeting.end(s)
+
+    if parallel:
+        each(follow, starts)
+    else:
+        # One at a time, best-ranked first, so that a later start can meet an earlier one.
+        for s in _ranked(starts, meeting):
+            follow(s)
+    return starts
+
+
+def _ranked(starts: list, meeting: _Meeting) -> list:
+    live = [s for s in starts if not s.status]
+    return sorted(live, key=lambda s: len(meeting.ahead[id(s)]))
+
+
+def guarded_start(problem: Problem, start: StartResult, multiple: bool, options: dict, say=None) -> StartResult:
+    """One start through the continuation and single shooting (:func:`run_starts`); its failure
+    comes back ``failed`` with the reason."""
+    return run_starts(problem, [start], multiple, options, 1, say)[0]
 
 
 def latin_hypercube(p: int, n: int, seed: int) -> np.ndarray:

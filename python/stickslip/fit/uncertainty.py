@@ -250,6 +250,22 @@ def misfit_warnings(gof: dict, absolute_sigma: bool) -> list:
     return out
 
 
+def robust_cost(r, loss: str, f_scale: float) -> float:
+    """The cost least_squares minimizes with this loss: ½·f_scale²·Σρ((r/f_scale)²)."""
+    z = (np.asarray(r, dtype=np.float64) / f_scale) ** 2
+    if loss == "soft_l1":
+        rho = 2.0 * (np.sqrt(1.0 + z) - 1.0)
+    elif loss == "huber":
+        rho = np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
+    elif loss == "cauchy":
+        rho = np.log1p(z)
+    elif loss == "arctan":
+        rho = np.arctan(z)
+    else:
+        rho = z
+    return 0.5 * f_scale**2 * float(rho.sum())
+
+
 def rho_prime(r, loss: str, f_scale: float):
     """ρ′(r²) of scipy's robust losses, the weights of iteratively reweighted least squares."""
     z = (r / f_scale) ** 2
