@@ -36,6 +36,7 @@ def _problem(tmp_path, names, options=None, duration=0.6):
 
 def _runs(problem, z, segment, per_point: bool, monkeypatch):
     monkeypatch.setenv("STICKSLIP_PER_POINT", "1" if per_point else "0")
+    problem.forget()  # the problem keeps a point's runs: each way must run it
     return problem.runs([z], segment)[0]
 
 
@@ -161,3 +162,44 @@ def test_a_motor_arms_jacobian_carries_the_rotors_start_through_the_gear(tmp_pat
     runs = problem.runs([z], 0.1, problem.sensitivity_steps(z))[0]
     J0, _ = problem.residual_jacobian(runs, z)
     assert max(np.max(np.abs(J0[:, j] - J[:, j])) / np.max(np.abs(J[:, j])) for j in columns) > 1e-2
+
+
+def test_a_point_asked_for_again_is_not_run_again_in_the_same_thread(tmp_path):
+    """Problem.runs keeps each thread's recent points (runs are deterministic): the same point
+    again costs no run and gives the same objects; another thread runs it anew (so that which
+    points are found does not depend on how the starts' threads interleave); a point differing
+    in the last bit, another error tolerance or another segment length is run; ``forget`` forgets."""
+    import threading
+
+    from stickslip.fit.problem import RECENT
+
+    problem = _problem(tmp_path, ["mu_k[1]", "k[3]"], duration=0.2)
+    z = problem.transform.z([0.16, 7e5])
+    first = problem.runs([z])[0]
+    runs = problem.evaluator.runs
+    again = problem.runs([np.array(z), z])
+    assert problem.evaluator.runs == runs and again[0] is first and again[1] is first
+    other = {}
+    t = threading.Thread(target=lambda: other.setdefault("r", problem.runs([z])[0]))
+    t.start()
+    t.join()
+    assert problem.evaluator.runs == runs + 1 and other["r"] is not first
+    np.testing.assert_array_equal(other["r"][0].values, first[0].values)
+    nudged = np.array(z)
+    nudged[0] = np.nextafter(nudged[0], 1.0)
+    problem.runs([nudged])
+    problem.runs([z], 0.1)
+    problem.with_tolerance(1e-5).runs([z])
+    assert problem.evaluator.runs == runs + 4
+    problem.forget()
+    problem.runs([z])
+    assert problem.evaluator.runs == runs + 5
+    # At most RECENT points are kept: the oldest is run again.
+    problem.forget()
+    points = [problem.transform.z([0.16 + 1e-4 * k, 7e5]) for k in range(RECENT + 1)]
+    problem.runs(points)
+    count = problem.evaluator.runs
+    problem.runs([points[-1]])
+    assert problem.evaluator.runs == count
+    problem.runs([points[0]])
+    assert problem.evaluator.runs == count + 1

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import OrderedDict
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from .runner import Payload, RunResult, run
 from .start import segment_starts, start_states
 
 PENALTY = 1e3  # normalized residual of a sample a run did not reach
+RECENT = 32  # points whose runs each thread keeps (Problem.runs)
 
 
 class Transform:
@@ -153,6 +155,12 @@ class Problem:
         # Jacobian columns from the FMU's sensitivities, and by differences where their event
         # pattern changed (shared with the problems of other tolerances: with_tolerance).
         self.columns = {"sensitivities": 0, "differences": 0}
+        # Per thread, the RunResults of the last RECENT points (runs are deterministic, so a
+        # point asked for again is not run again): a stage's last Jacobian is the one the
+        # uncertainty takes at its answer, and the tolerance check's the refit's first. Per
+        # thread, so that which points are found does not depend on how the starts' threads
+        # interleave (fit.json's run count is the same at any load).
+        self._recent = threading.local()
 
     def with_tolerance(self, error_tolerance: float) -> Problem:
         """The same problem with the FMU's error_tolerance set to ``error_tolerance``."""
@@ -215,14 +223,33 @@ class Problem:
         {parameter: step}, their derivatives too)."""
         segment = self.horizon if segment is None else segment  # the final cost's shooting
         segments = self.segments(segment) if segment is not None else [None] * len(self.spec.experiments)
-        jobs = []
-        for z in points:
-            p = self.parameters(z)
-            for i in range(len(self.spec.experiments)):
-                jobs.append((i, p, segments[i]))
-        results = self.evaluator.map(jobs, sensitivities)
         n = len(self.spec.experiments)
-        return [results[k * n : (k + 1) * n] for k in range(len(points))]
+        if sensitivities:
+            jobs = [(i, self.parameters(z), segments[i]) for z in points for i in range(n)]
+            results = self.evaluator.map(jobs, sensitivities)
+            return [results[k * n : (k + 1) * n] for k in range(len(points))]
+        recent = getattr(self._recent, "runs", None)
+        if recent is None:
+            recent = self._recent.runs = OrderedDict()
+        keys = [(np.asarray(z, dtype=np.float64).tobytes(), self.error_tolerance, segment) for z in points]
+        new = list(dict.fromkeys(k for k in keys if k not in recent))
+        if new:
+            at = {k: z for k, z in zip(keys, points, strict=True)}
+            jobs = [(i, self.parameters(at[k]), segments[i]) for k in new for i in range(n)]
+            results = self.evaluator.map(jobs)
+            for m, k in enumerate(new):
+                recent[k] = results[m * n : (m + 1) * n]
+        out = []
+        for k in keys:
+            recent.move_to_end(k)
+            out.append(recent[k])
+        while len(recent) > RECENT:
+            recent.popitem(last=False)
+        return out
+
+    def forget(self) -> None:
+        """Forgets this thread's recent runs: the next ask runs every point again."""
+        self._recent.runs = OrderedDict()
 
     def residual(self, results: list) -> np.ndarray:
         """(model − measured)/σ of every sample, PENALTY where the run did not reach it."""

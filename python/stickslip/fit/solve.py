@@ -473,7 +473,10 @@ def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, th
     t0 = time.perf_counter()
     for s in starts:
         s.t0 = t0
-    each(lambda s: _guarded(s, lambda: _begin(problem, s, say), say), starts)
+    # Each piece of work starts with its thread's recent runs forgotten (Problem.runs), and so
+    # does the caller after them: which runs are found again then depends on neither the
+    # threads' interleaving nor whether the starts ran in threads at all.
+    each(lambda s: _guarded(s, lambda: (problem.forget(), _begin(problem, s, say)), say), starts)
     meeting = _Meeting(starts)
 
     def follow(s: StartResult) -> None:
@@ -481,6 +484,7 @@ def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, th
             return
         # Its runs wait behind those of the starts ranked before it.
         problem.evaluator.priority.value = -len(meeting.ahead[id(s)])
+        problem.forget()
         try:
             alone = False
             for stage, length in enumerate(lengths):
@@ -507,6 +511,8 @@ def run_starts(problem: Problem, starts: list, multiple: bool, options: dict, th
         # One at a time, best-ranked first, so that a later start can meet an earlier one.
         for s in _ranked(starts, meeting):
             follow(s)
+    problem.forget()
+    problem.evaluator.priority.value = 0
     return starts
 
 
