@@ -551,6 +551,26 @@ def _numerically_converged(problem: Problem, opt: Optimum, options: dict, say) -
     return problem, opt, record
 
 
+def _moving_start_warnings(spec, payloads: list) -> list:
+    """Where the model does not follow the data and an experiment starts with a joint in motion:
+    that joint's start state is read off its first samples by the derivative filter, and its
+    error alone can make the run drift from the data (docs/calibration.md, "The start")."""
+    out = []
+    for e, payload in zip(spec.experiments, payloads, strict=True):
+        start = payload.start
+        moving = [i for i, how in (start.how if start is not None else {}).items() if how.startswith("moving")]
+        if moving:
+            said = "; ".join(f"joint {i} {start.how[i]}" for i in moving)
+            out.append(
+                f"experiment {e.name!r} starts with joint(s) {', '.join(map(str, moving))} in motion ({said}): "
+                "a start state read off filtered samples is uncertain, and its error alone can make the run drift "
+                "from the data and end the fit away from the truth. Where the run starts from the FMU's own start "
+                '(at rest, the springs relaxed) set start = "rest" in its [[experiment]]; else begin the data '
+                "where the arm stands still"
+            )
+    return out
+
+
 def _fmu_tolerance(spec) -> float | None:
     for v in spec.model_description.modelVariables:
         if v.name == "error_tolerance" and v.start is not None:
@@ -675,6 +695,8 @@ def _summarize(
             "integration noise is not far below the step; tighten error_tolerance"
         )
     misfit = misfit_warnings(gof, options["absolute_sigma"])
+    if misfit:
+        misfit += _moving_start_warnings(spec, problem.evaluator.payloads)
     warnings = misfit + warnings
     for name, prof in profile.items():
         for side, is_open in zip(("lower", "upper"), prof["open"], strict=True):
