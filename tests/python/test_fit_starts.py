@@ -1,4 +1,5 @@
-"""How the fit's stages end and its starts meet (stickslip.fit.solve), no FMU involved:
+"""How the fit's stages end, its starts meet and its tolerance checks stop (stickslip.fit.solve,
+stickslip.fit), no FMU involved:
 
 * ``settled``: the Gauss-Newton step in standard errors is, on a linear model, exactly the
   distance to the least-squares solution over its closed-form standard errors; a parameter the
@@ -7,7 +8,10 @@
 * ``_Meeting``: which start merges into which does not depend on the order in which their
   threads end a stage (the better start, by its cost at its start point, is kept); a merged start
   goes on from its own start point where that is lower than where the start it joined ended the
-  continuation, and from where it merged where that start failed.
+  continuation, and from where it merged where that start failed;
+* ``_tighten``: a tighter error tolerance is tried again only where the estimates move there,
+  or where the last tightening at least halved how much the standard errors depend on the
+  Jacobian's step.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from stickslip.fit.solve import MEET, SETTLED, StartResult, _Meeting, settled
+from stickslip.fit.solve import BEHIND, MEET, SETTLED, StartResult, _Meeting, settled
 from stickslip.fit.uncertainty import robust_cost
 
 
@@ -96,6 +100,7 @@ def _start(origin: str, start_cost: float, z, se=0.01) -> StartResult:
     s.z_start = np.array([0.9, 0.9])
     s.z = np.array(z, dtype=np.float64)
     s.se = np.full(2, se)
+    s.ms_cost = start_cost
     return s
 
 
@@ -173,3 +178,42 @@ def test_a_start_merged_into_one_that_failed_goes_on_from_where_it_merged():
     meeting.end(kept)
     assert meeting.revive(merged, lambda line: None)
     assert merged.status == "" and np.array_equal(merged.z, at)
+
+
+@pytest.mark.parametrize(
+    "se_change, previous, shift, expected",
+    [
+        (0.05, None, 0.1, (False, False)),  # nothing moves: the answer stands
+        (0.05, None, 0.5, (True, False)),  # the estimates move at the tighter tolerance
+        (0.5, None, 0.0, (True, False)),  # step-dependent at the first check: try the tighter one
+        (0.2, 0.5, 0.0, (True, False)),  # it shrank to less than half: the FMU's noise, go on
+        (0.3, 0.5, 0.0, (False, True)),  # it did not: not the noise, stop (warned)
+        (0.99, 0.004, 0.0, (False, True)),  # it grew
+        (0.3, 0.5, 0.4, (True, True)),  # the shift alone asks for the refit
+        (0.08, 0.5, 0.0, (False, False)),  # below SE_STEP_CHANGE: done
+    ],
+)
+def test_a_tighter_tolerance_is_tried_again_only_where_the_last_one_helped(se_change, previous, shift, expected):
+    from stickslip.fit import SE_STEP_CHANGE, SHIFT_LIMIT, _tighten
+
+    assert SE_STEP_CHANGE == 0.10 and SHIFT_LIMIT == 0.3
+    assert _tighten(se_change, previous, shift) == expected
+
+
+def test_a_start_far_behind_a_better_ranked_one_at_a_stage_is_abandoned():
+    """Its stage cost more than BEHIND times that of a start ranked before it: abandoned, with
+    both costs in its message; just under BEHIND times: it goes on; the best-ranked start is
+    never abandoned, whatever the others' costs."""
+    lead = _start("equation-error", 10.0, [0.5, 0.5])
+    near = _start("initial", 20.0, [0.2, 0.2])
+    far = _start("latin hypercube 1", 30.0, [0.8, 0.8])
+    lead.ms_cost, near.ms_cost, far.ms_cost = 100.0, 0.99 * BEHIND * 100.0, 1.01 * BEHIND * 100.0
+    meeting = _Meeting([lead, near, far])
+    assert meeting.after_stage(lead, 0, 0.1, lambda line: None)
+    assert meeting.after_stage(near, 0, 0.1, lambda line: None)
+    assert not meeting.after_stage(far, 0, 0.1, lambda line: None)
+    assert far.status == "abandoned" and math.isinf(far.cost)
+    assert "cost 1010 is 10.1 times that of start 'equation-error' (100)" in far.message, far.message
+    # The leader at a stage where a later start is far better: it goes on all the same.
+    lead.ms_cost = 1e9
+    assert meeting.after_stage(lead, 1, 0.3, lambda line: None)
