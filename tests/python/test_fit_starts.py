@@ -217,3 +217,17 @@ def test_a_start_far_behind_a_better_ranked_one_at_a_stage_is_abandoned():
     # The leader at a stage where a later start is far better: it goes on all the same.
     lead.ms_cost = 1e9
     assert meeting.after_stage(lead, 1, 0.3, lambda line: None)
+
+
+def test_a_start_merged_into_one_later_abandoned_stays_merged():
+    lead = _start("equation-error", 10.0, [0.1, 0.1])
+    kept = _start("initial", 20.0, [0.5, 0.5])
+    merged = _start("latin hypercube 1", 30.0, [0.5, 0.5])
+    meeting = _Meeting([lead, kept, merged])
+    for s in (lead, kept):
+        assert meeting.after_stage(s, 0, 0.1, lambda line: None)
+    assert not meeting.after_stage(merged, 0, 0.1, lambda line: None) and merged.merged_into is kept
+    lead.ms_cost, kept.ms_cost = 1.0, 100.0
+    assert meeting.after_stage(lead, 1, 0.3, lambda line: None)
+    assert not meeting.after_stage(kept, 1, 0.3, lambda line: None) and kept.status == "abandoned"
+    assert not meeting.revive(merged, lambda line: None) and merged.status == "merged"

@@ -364,13 +364,6 @@ def _guarded(start: StartResult, stage, say) -> None:
         say(f"fit: start {start.origin!r} failed: {start.message}")
 
 
-def _meet(a: StartResult, b: StartResult) -> bool:
-    if a.se is None or b.se is None or a.z is None or b.z is None:
-        return False
-    scale = np.maximum(a.se, b.se)
-    return bool(np.all(np.isfinite(scale)) and np.all(np.abs(a.z - b.z) <= MEET * scale))
-
-
 class _Meeting:
     """Where the starts meet after each multiple-shooting stage. The starts are ranked by their
     single-shooting cost at their start points (then by their order); after stage i a start
@@ -434,7 +427,7 @@ class _Meeting:
         """Whether the merged ``s`` goes on alone after all: from its start point where that has
         a lower single-shooting cost than where the start it joined ended the continuation (as
         it would have alone: :func:`_continued`), or from where it merged where that start
-        failed."""
+        failed; never where that start was abandoned (the basin they share was)."""
 
         def root():
             r = s.merged_into
@@ -445,6 +438,8 @@ class _Meeting:
         with self.cv:
             self.cv.wait_for(lambda: root().continuation_cost is not None or self.progress[id(root())] == math.inf)
             r = root()
+            if r.status == "abandoned":
+                return False  # its basin is the one abandoned: so is it
             if r.continuation_cost is not None and s.start_cost < r.continuation_cost:
                 s.z, s.continuation_cost = s.z_start, r.continuation_cost
                 where = "its start point, whose cost is lower than where the continuation ended"
