@@ -203,3 +203,22 @@ def test_a_point_asked_for_again_is_not_run_again_in_the_same_thread(tmp_path):
     assert problem.evaluator.runs == count
     problem.runs([points[0]])
     assert problem.evaluator.runs == count + 1
+
+
+def test_a_run_that_ends_in_an_error_is_not_kept(tmp_path):
+    """A run that ends in an error which may be the worker's, not the FMU's answer (here an FMU
+    that cannot be unpacked where the run is made), is not kept: asked for again, the point is
+    run again, and gives the FMU's answer once the FMU is there."""
+    problem = _problem(tmp_path, ["mu_k[1]", "k[3]"], duration=0.2)
+    z = problem.transform.z([0.16, 7e5])
+    evaluator = problem.evaluator
+    digest, data = evaluator.digest, evaluator.fmu_data
+    evaluator.digest, evaluator.fmu_data = "0" * 64 + "-not-unpacked", b"not a zip file"
+    (broken,) = problem.runs([z])[0]
+    assert broken.status == "error" and "FMU not available here" in broken.message, broken
+    evaluator.digest, evaluator.fmu_data = digest, data
+    count = evaluator.runs
+    (good,) = problem.runs([z])[0]
+    assert evaluator.runs == count + 1 and good.status == "ok"
+    problem.runs([z])
+    assert evaluator.runs == count + 1  # the FMU's answer is kept

@@ -233,16 +233,24 @@ class Problem:
             recent = self._recent.runs = OrderedDict()
         keys = [(np.asarray(z, dtype=np.float64).tobytes(), self.error_tolerance, segment) for z in points]
         new = list(dict.fromkeys(k for k in keys if k not in recent))
+        fresh = {}
         if new:
             at = {k: z for k, z in zip(keys, points, strict=True)}
             jobs = [(i, self.parameters(at[k]), segments[i]) for k in new for i in range(n)]
             results = self.evaluator.map(jobs)
             for m, k in enumerate(new):
-                recent[k] = results[m * n : (m + 1) * n]
+                fresh[k] = results[m * n : (m + 1) * n]
+                # Kept only where the run's end is the FMU's own answer (ok, refused, discarded),
+                # not an error that may be the worker's (a crash, a lost connection).
+                if all(r.status in ("ok", "refused", "discard") for r in fresh[k]):
+                    recent[k] = fresh[k]
         out = []
         for k in keys:
-            recent.move_to_end(k)
-            out.append(recent[k])
+            if k in recent:
+                recent.move_to_end(k)
+                out.append(recent[k])
+            else:
+                out.append(fresh[k])
         while len(recent) > RECENT:
             recent.popitem(last=False)
         return out
