@@ -306,7 +306,7 @@ def replay_main(a: argparse.Namespace, overrides: dict) -> int:
     the SPEC's experiments replayed (:mod:`stickslip.fit.replay`) into ``--out`` (a directory;
     default results/replay). Exit 2 for a SPEC, fitted.toml or --set that cannot be used, 1
     when a run ends early (the FMU refused or discarded a step), else 0."""
-    from .fit.replay import ReplayError, fitted_values, replay
+    from .fit.replay import ReplayError, fitted_starts, fitted_values, replay
     from .fit.spec import FitSpecError, load
 
     if a.motion is not None or a.end is not None:
@@ -327,7 +327,8 @@ def replay_main(a: argparse.Namespace, overrides: dict) -> int:
         fitted = fitted_values(a.fitted) if a.fitted else {}
         if a.horizon is not None and not a.horizon > 0:
             raise ReplayError(f"--horizon {a.horizon:g}: must be > 0 seconds")
-        report = replay(spec, a.experiment or None, fitted, overrides, out, horizon=a.horizon)
+        starts = fitted_starts(a.fitted) if a.fitted else {}
+        report = replay(spec, a.experiment or None, fitted, overrides, out, horizon=a.horizon, starts=starts)
     except (FitSpecError, ReplayError) as e:
         print(f"stickslip simulate: {e}", file=sys.stderr)
         return 2

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,7 @@ from .solve import (
     segment_lengths,
 )
 from .spec import FitSpec, FitSpecError, load
+from .start import START_SIGMAS, start_unknowns
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
 SAME_COST = 0.95  # starts whose cost the data cannot reject at this level are "of similar cost"
@@ -87,8 +88,14 @@ def fit(
         from ..cluster import connect
 
         client, own_cluster = connect(scheduler, workers)
+    model = spec  # the SPEC's own estimates: the model's parameters, without the start unknowns
+    if spec.options["fit_start"] and spec.options["stage"] != "equation-error":
+        unknowns = [u for e, p in zip(spec.experiments, payloads, strict=True) for u in start_unknowns(e, p.start)]
+        if unknowns:
+            spec = replace(spec, estimates=[*spec.estimates, *unknowns])
+            say(f"fit: the start state of the joints moving at the first sample is fitted too: {_names(unknowns)}")
     try:
-        _probe(spec, payloads, fmu_data, digest)
+        _probe(model, payloads, fmu_data, digest)
         evaluator = Evaluator(fmu_data, digest, payloads, client)
         problem = Problem(spec, evaluator)
         # Multiple shooting restarts each segment from the measured q, q' of every flexible and
@@ -119,7 +126,7 @@ def fit(
 
         errors = {}
         try:
-            idim_theta, notes = idim.estimate(spec, unpacked(fmu_data, digest), flexible, initial, tunable, errors)
+            idim_theta, notes = idim.estimate(model, unpacked(fmu_data, digest), flexible, initial, tunable, errors)
         except (RuntimeError, OSError, KeyError, ValueError) as e:
             idim_theta, notes = {}, [f"equation-error stage failed, its start left out: {e}"]
         for note in notes:
@@ -148,7 +155,11 @@ def fit(
             else:
                 dropped.append(StartResult(at, "equation-error", status="dropped", message=reason))
                 say(f"fit: start 'equation-error' dropped: {reason}")
+        # The hypercube spans the model's parameters; the start unknowns start as read.
+        read = problem.transform.z(list(initial.values()))
+        tied = np.array([e.start_of is not None for e in spec.estimates])
         for k, z in enumerate(latin_hypercube(len(initial), spec.options["starts"] - 1, spec.options["seed"])):
+            z = np.where(tied, read, z)
             starts.append(StartResult(problem.transform.named(problem.transform.theta(z)), f"latin hypercube {k + 1}"))
         threads = max(1, min(len(starts), _cores(client)))
         say(
@@ -210,6 +221,10 @@ def fit(
 
         write(result, spec, Path(out))
     return result
+
+
+def _names(estimates) -> str:
+    return ", ".join(e.name for e in estimates)
 
 
 def _impossible(estimates, theta: dict) -> str | None:
@@ -568,9 +583,9 @@ def _moving_start_warnings(spec, payloads: list) -> list:
             out.append(
                 f"experiment {e.name!r} starts with joint(s) {', '.join(map(str, moving))} in motion ({said}): "
                 "a start state read off filtered samples is uncertain, and its error alone can make the run drift "
-                "from the data and end the fit away from the truth. Where the run starts from the FMU's own start "
-                '(at rest, the springs relaxed) set start = "rest" in its [[experiment]]; else begin the data '
-                "where the arm stands still"
+                "from the data and end the fit away from the truth. Fit it with the parameters ([options] fit_start = "
+                "true, the default); where the run starts from the FMU's own start (at rest, the springs relaxed) "
+                'set start = "rest" in its [[experiment]]; else begin the data where the arm stands still'
             )
     return out
 
@@ -646,7 +661,7 @@ def _summarize(
     theta = transform.theta(z)
     names = [e.name for e in spec.estimates]
     warnings = list(moved)
-    params = {}
+    params, start_state = {}, {}
     numerical = _numerical_part(tightening, unc.std_error)
     for j, e in enumerate(spec.estimates):
         span = e.high - e.low
@@ -657,6 +672,23 @@ def _summarize(
             se = max(se, prof["std_error_profile"])
         statistical = se
         se = math.hypot(se, numerical[j])
+        if e.start_of is not None:  # an unknown of the fit, not a parameter of the model
+            start_state[e.name] = {
+                "value": float(theta[j]),
+                "std_error": se,
+                "read": e.initial,
+                "bounds": [e.low, e.high],
+                "at_bound": at_bound,
+                "experiment": e.start_of,
+                "variable": e.variable,
+            }
+            if at_bound:
+                warnings.append(
+                    f"{e.name} = {theta[j]:.6g} sits on a bound of the start state, {START_SIGMAS:g} noise standard "
+                    f"deviations of its reading ({e.initial:.8g}) away: the model does not follow the run's first "
+                    "samples from any start near them"
+                )
+            continue
         params[e.name] = {
             "value": float(theta[j]),
             "std_error": se,
@@ -692,7 +724,7 @@ def _summarize(
             "(column-scaled) is not determined by the data"
         )
     last = tightening[-1] if tightening else None
-    numerically_limited = [n for n, x in zip(names, numerical, strict=True) if x > 0]
+    numerically_limited = [n for n, x in zip(names, numerical, strict=True) if x > 0 and n in params]
     if numerically_limited:
         warnings.append(
             f"the FMU's numerical error moves {', '.join(numerically_limited)} by more than its statistical standard "
@@ -722,7 +754,7 @@ def _summarize(
             "integration noise is not far below the step; tighten error_tolerance"
         )
     misfit = misfit_warnings(gof, options["absolute_sigma"])
-    if misfit:
+    if misfit and not any(e.start_of is not None for e in spec.estimates):
         misfit += _moving_start_warnings(spec, problem.evaluator.payloads)
     warnings = misfit + warnings
     for name, prof in profile.items():
@@ -759,8 +791,9 @@ def _summarize(
     for s, _ in similar:
         spread = np.maximum(spread, np.abs(transform.theta(s.z) - theta))
     for j, name in enumerate(names):
-        params[name]["std_error_minima"] = float(spread[j])
-        params[name]["std_error"] = math.hypot(params[name]["std_error"], spread[j])
+        entry = params.get(name) or start_state[name]
+        entry["std_error_minima"] = float(spread[j])
+        entry["std_error"] = math.hypot(entry["std_error"], spread[j])
     lower = None
     if lowest.theta is not None and lowest.cost < cost - NOT_A_MINIMUM * unc.scale:
         lower = (lowest.cost, lowest.theta)
@@ -799,6 +832,7 @@ def _summarize(
         "trusted": trusted,
         "verdict": verdict,
         "parameters": params,
+        "start_state": start_state,
         "correlation": {"names": names, "matrix": np.round(unc.correlation, 12).tolist()},
         "cost": cost,
         "goodness_of_fit": _goodness_json(gof),

@@ -106,16 +106,21 @@ class Evaluator:
             client.register_plugin(FmuPlugin(fmu_data, digest))
             self.remote = client.scatter(payloads, broadcast=True)
 
-    def map(self, jobs: list, sensitivities: dict | None = None) -> list:
+    def map(self, jobs: list, sensitivities: list | None = None) -> list:
         """jobs: (experiment index, parameters, Segments or None) -> RunResults, in order; with
-        ``sensitivities`` ({parameter: step}), their derivatives too (one native call a job)."""
+        ``sensitivities`` (per experiment {parameter: step}), their derivatives too (one native
+        call a job)."""
         with self._lock:
             self.runs += len(jobs)
             if sensitivities:
                 self.jacobians += len(jobs)
+
+        def wrt(i):
+            return sensitivities[i] if sensitivities else None
+
         if self.client is None:
             return [
-                run(self.digest, self.payloads[i], p, s, fmu_data=self.fmu_data, sensitivities=sensitivities)
+                run(self.digest, self.payloads[i], p, s, fmu_data=self.fmu_data, sensitivities=wrt(i))
                 for i, p, s in jobs
             ]
         futures = [
@@ -125,7 +130,7 @@ class Evaluator:
                 self.remote[i],
                 p,
                 s,
-                sensitivities=sensitivities,
+                sensitivities=wrt(i),
                 pure=False,
                 priority=getattr(self.priority, "value", 0),
             )
@@ -212,20 +217,33 @@ class Problem:
         many = len(self.spec.experiments) > 1
         return [f"{e.name}:{c.output}" if many else c.output for e in self.spec.experiments for c in e.channels]
 
-    def parameters(self, z) -> dict:
-        values = self.transform.named(self.transform.theta(z))
+    def model_columns(self) -> np.ndarray:
+        """Indices of the model's parameters among the estimates (not the start unknowns)."""
+        return np.array([j for j, e in enumerate(self.spec.estimates) if e.start_of is None], dtype=int)
+
+    def own(self, i: int) -> list:
+        """Indices of the estimates a run of experiment i takes: the model's parameters and its
+        own start unknowns (:func:`stickslip.fit.start.start_unknowns`)."""
+        name = self.spec.experiments[i].name
+        return [j for j, e in enumerate(self.spec.estimates) if e.start_of in (None, name)]
+
+    def parameters(self, z, i: int) -> dict:
+        """The FMU's parameters of a run of experiment i at z (a start unknown by the variable
+        it sets)."""
+        theta = self.transform.theta(z)
+        values = {self.spec.estimates[j].variable: float(theta[j]) for j in self.own(i)}
         if self.error_tolerance is not None:
             values["error_tolerance"] = self.error_tolerance
         return values
 
-    def runs(self, points: list, segment: float | None = None, sensitivities: dict | None = None) -> list:
-        """For each z in points: the RunResults of every experiment (with ``sensitivities``,
-        {parameter: step}, their derivatives too)."""
+    def runs(self, points: list, segment: float | None = None, sensitivities: list | None = None) -> list:
+        """For each z in points: the RunResults of every experiment (with ``sensitivities``, per
+        experiment {parameter: step}, their derivatives too)."""
         segment = self.horizon if segment is None else segment  # the final cost's shooting
         segments = self.segments(segment) if segment is not None else [None] * len(self.spec.experiments)
         n = len(self.spec.experiments)
         if sensitivities:
-            jobs = [(i, self.parameters(z), segments[i]) for z in points for i in range(n)]
+            jobs = [(i, self.parameters(z, i), segments[i]) for z in points for i in range(n)]
             results = self.evaluator.map(jobs, sensitivities)
             return [results[k * n : (k + 1) * n] for k in range(len(points))]
         recent = getattr(self._recent, "runs", None)
@@ -236,7 +254,7 @@ class Problem:
         fresh = {}
         if new:
             at = {k: z for k, z in zip(keys, points, strict=True)}
-            jobs = [(i, self.parameters(at[k]), segments[i]) for k in new for i in range(n)]
+            jobs = [(i, self.parameters(at[k], i), segments[i]) for k in new for i in range(n)]
             results = self.evaluator.map(jobs)
             for m, k in enumerate(new):
                 fresh[k] = results[m * n : (m + 1) * n]
@@ -281,17 +299,25 @@ class Problem:
             self.columns["sensitivities"] += int(np.sum(exact))
             self.columns["differences"] += int(np.sum(~exact))
 
-    def sensitivity_steps(self, z) -> dict:
-        """{estimate: step} of the FMU's internal numerical differentiation at z: 1e-6 of the
-        value (1e-6 of its bound range where the value is 0). With the sub-steps and events of
-        the run frozen, the differences are the scheme's derivative up to rounding and to the
-        Newmark iteration's 1e-12 over this step (1e-6 of the column, measured in
-        src/fmi/tests.rs), not the error control's noise."""
+    def sensitivity_steps(self, z) -> list:
+        """Per experiment {parameter: step} of the FMU's internal numerical differentiation at z
+        (its own estimates, :meth:`own`): 1e-6 of the value (1e-6 of its bound range where the
+        value is 0; a start unknown's always, its value being a position or a rate that may
+        pass 0). With the sub-steps and events of the run frozen, the differences are the
+        scheme's derivative up to rounding and to the Newmark iteration's 1e-12 over this step
+        (1e-6 of the column, measured in src/fmi/tests.rs), not the error control's noise."""
         theta = self.transform.theta(z)
-        return {
-            e.name: float(max(1e-6 * abs(t), 1e-6 * (e.high - e.low) if t == 0.0 else 0.0, 1e-300))
-            for e, t in zip(self.spec.estimates, theta, strict=True)
-        }
+
+        def step(e, t):
+            if e.start_of is not None:
+                return 1e-6 * (e.high - e.low)
+            return float(max(1e-6 * abs(t), 1e-6 * (e.high - e.low) if t == 0.0 else 0.0, 1e-300))
+
+        estimates = self.spec.estimates
+        return [
+            {estimates[j].variable: step(estimates[j], theta[j]) for j in self.own(i)}
+            for i in range(len(self.spec.experiments))
+        ]
 
     def residual_jacobian(self, results: list, z) -> tuple:
         """(J, exact): the residuals' Jacobian in z from the runs' sensitivities, and per estimate
@@ -301,13 +327,15 @@ class Problem:
         p = len(self.spec.estimates)
         parts = []
         exact = np.ones(p, dtype=bool)
-        for res, meas, sigma in zip(results, self.measured, self.sigma, strict=True):
+        for i, (res, meas, sigma) in enumerate(zip(results, self.measured, self.sigma, strict=True)):
             if res.jacobian is None:
                 return None, None
             n, k = meas.shape
-            jac = res.jacobian / sigma[None, :, None]
+            own = self.own(i)  # the run's columns; another experiment's start does not move it
+            jac = np.zeros((n, k, p))
+            jac[:, :, own] = res.jacobian / sigma[None, :, None]
             jac[~np.isfinite((res.values - meas) / sigma)] = 0.0
-            exact &= res.exact & np.all(np.isfinite(jac), axis=(0, 1))
+            exact[own] &= res.exact & np.all(np.isfinite(jac[:, :, own]), axis=(0, 1))
             parts.append(jac.transpose(1, 0, 2).reshape(k * n, p))
         return np.vstack(parts) @ self.transform.jacobian(z), exact
 

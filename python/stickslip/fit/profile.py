@@ -152,6 +152,8 @@ def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest
     ratios = quadratic_check(problem, theta, cost0, C, unc.std_error_classical, scale, lowest)
     out = {}
     for j, name in enumerate(names):
+        if problem.spec.estimates[j].start_of is not None:  # a start unknown: its standard error is enough
+            continue
         ratio = ratios.get(j, math.nan)
         quadratic = QUADRATIC[0] <= ratio <= QUADRATIC[1]
         if quadratic and not name.startswith("mu_s["):

@@ -60,6 +60,31 @@ def fitted_values(path) -> dict:
     return values
 
 
+def fitted_starts(path) -> dict:
+    """The [start.<experiment>] tables of a fitted.toml: {experiment: {q_start[i] or qd_start[i]:
+    value}}, the start state the fit found for the joints moving at the experiment's first
+    sample (:func:`stickslip.fit.start.start_unknowns`); {} where it has none."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return {}  # fitted_values says what is wrong with the file
+    table = doc.get("start", {})
+    if not isinstance(table, dict):
+        raise ReplayError(f"--fitted {path}: [start] must hold a table per experiment")
+    out = {}
+    for name, part in table.items():
+        if not isinstance(part, dict):
+            raise ReplayError(f"--fitted {path}: [start.{name}] must be a table of q_start[i] / qd_start[i] = value")
+        for variable, value in part.items():
+            if not variable.startswith(("q_start[", "qd_start[")):
+                raise ReplayError(f"--fitted {path}: [start.{name}] {variable}: only q_start[i] and qd_start[i]")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ReplayError(f"--fitted {path}: [start.{name}] {variable} = {value!r}: must be a finite number")
+            out.setdefault(name, {})[variable] = float(value)
+    return out
+
+
 def replay(
     spec,
     experiments=None,
@@ -69,10 +94,12 @@ def replay(
     plot=True,
     say=print,
     horizon: float | None = None,
+    starts: dict | None = None,
 ) -> dict:
     """Runs the experiments named ``experiments`` (all when None) of the loaded FitSpec
     ``spec`` with the values ``fitted`` (FMU name -> value) under each experiment's known
-    ones, and ``overrides`` (``--set``) over both; returns
+    ones, and ``overrides`` (``--set``) over both, each experiment of ``starts`` (its
+    :func:`fitted_starts`) from the start state the fit found for it; returns
     {experiment: {"status", "message", "residual_rms", "normalized_rms", "cost", "csv", "png"}}.
     Raises :class:`ReplayError` for an unknown experiment or a value the FMU does not have."""
     from ..fmu import content_hash, unpacked
@@ -103,6 +130,16 @@ def replay(
         e = by_name[name]
         values = {**{k: v for k, v in fitted.items() if k not in e.parameters}, **overrides}
         payload = payload_of(e, md, where, values, outputs)
+        if payload.start is not None:  # the fitted start of the joints moving at the first sample
+            unknown = [
+                v for v in (starts or {}).get(name, {}) if int(v[v.index("[") + 1 : -1]) not in payload.start.moving
+            ]
+            if unknown:
+                raise ReplayError(
+                    f"--fitted: [start.{name}] {unknown[0]}: the experiment's first sample does not read that joint "
+                    "as moving, so the fit had no start unknown for it (a fitted.toml of another SPEC?)"
+                )
+            values = {**(starts or {}).get(name, {}), **values}
         segments = None
         if horizon is not None:  # a prediction over ``horizon`` s from each measured state
             segments = start_states(e, segment_starts(e.time, horizon), md, where, values, require_measured=True)

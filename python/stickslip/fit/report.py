@@ -121,6 +121,12 @@ def fitted_toml(result: dict, spec, out=None) -> str:
         lines.append(f'"{name}" = {p["value"]!r}  # ± {p["std_error"]:.3g} (1 standard error)')
     if settings:
         lines += ["", "[settings]"] + [f'"{n}" = {v!r}' for n, v in settings.items()]
+    fitted_start = {}
+    for p in (result.get("start_state") or {}).values():
+        fitted_start.setdefault(p["experiment"], []).append(p)
+    for name, rows in fitted_start.items():
+        lines += ["", f'[start."{name}"]  # the start state the fit found for the joints moving at its first sample']
+        lines += [f'"{p["variable"]}" = {p["value"]!r}  # ± {p["std_error"]:.3g} (read {p["read"]!r})' for p in rows]
     for e in spec.experiments:
         if e.parameters:
             lines += ["", f'[known."{e.name}"]'] + [f'"{n}" = {_toml_value(v)}' for n, v in e.parameters.items()]

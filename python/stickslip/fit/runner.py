@@ -233,25 +233,31 @@ def _run_span(
             set_value(slave, inst.by_name[name], value)
         except FMICallException as e:
             raise _Refused(f"{name} = {value!r}: {inst.reason(str(e))}") from None
+    held = ()  # the start unknowns (q_start[i], qd_start[i]) a later segment does not depend on
     if start is not None:
         segments, k = start
         joints = segments.joints
+        # The first segment starts from the fitted start state where the parameters hold one
+        # (stickslip.fit.start.start_unknowns), the others from their reading.
+        q0, qd0 = segments.state(k, parameters)
+        if k > 0:
+            held = tuple(n for n in parameters if n.startswith(("q_start[", "qd_start[")))
         set_value(slave, inst.by_name["use_start_values"], True)
-        slave.setReal([inst.vr(f"q_start[{i}]") for i in joints], [float(x) for x in segments.q_start[k]])
-        slave.setReal([inst.vr(f"qd_start[{i}]") for i in joints], [float(x) for x in segments.qd_start[k]])
+        slave.setReal([inst.vr(f"q_start[{i}]") for i in joints], [float(x) for x in q0])
+        slave.setReal([inst.vr(f"qd_start[{i}]") for i in joints], [float(x) for x in qd0])
         if segments.motors:
             known = {**payload.fixed, **parameters}
 
             def value(name):
                 return known[name] if name in known else float(inst.by_name[name].start or 0.0)
 
-            rotor = segments.rotor(k, value)
+            rotor = segments.rotor(k, value, (q0, qd0))
             set_value(slave, inst.by_name["static_start"], False)  # the rotors start where the data put them
             slave.setReal([inst.vr(name) for name in rotor], [float(x) for x in rotor.values()])
             if wrt is not None:
                 chain = _rotor_chain(segments, k, known, value, wrt, rotor)
     if native_runs() and experiment.function(slave) is not None:
-        return _run_span_native(slave, inst, payload, first, last, values, wrt, chain)
+        return _run_span_native(slave, inst, payload, first, last, values, wrt, chain, held)
     if wrt is not None:
         wrt.available = False
     set_drive, set_torques = _input_setter(slave, inst, payload)
@@ -286,16 +292,17 @@ def native_runs() -> bool:
 
 def _rotor_chain(segments, k: int, known: dict, value, wrt, rotor: dict) -> dict:
     """{theta_m_start[i]: (its value, {parameter: derivative})}: how the rotors' start of segment k
-    (:meth:`Segments.rotor`, from the gear's k[i] and Delta[i]) moves with the parameters the
+    (:meth:`Segments.rotor`, from the gear's k[i] and Delta[i] and the fitted start state) moves with the parameters the
     sensitivities are taken to, by central differences of that closed form (its rounding ~1e-10
     of the derivative)."""
     out = {}
     for name, step in zip(wrt.names, wrt.steps, strict=True):
-        if not name.startswith(("k[", "Delta[")) or name not in known:
+        if not name.startswith(("k[", "Delta[", "q_start[", "qd_start[")) or name not in known:
             continue
 
         def moved(dx, name=name):
-            return segments.rotor(k, lambda n: known[n] + dx if n == name else value(n))
+            shifted = {**known, name: known[name] + dx}
+            return segments.rotor(k, lambda n: shifted[n] if n in shifted else value(n), segments.state(k, shifted))
 
         plus, minus = moved(step), moved(-step)
         for start in plus:
@@ -306,11 +313,12 @@ def _rotor_chain(segments, k: int, known: dict, value, wrt, rotor: dict) -> dict
 
 
 def _run_span_native(
-    slave, inst: _Instance, payload: Payload, first: int, last: int, values, wrt=None, chain=None
+    slave, inst: _Instance, payload: Payload, first: int, last: int, values, wrt=None, chain=None, held=()
 ) -> int:
     """Samples first..last into ``values`` by one native call: the same FMI calls as the
     per-point loop below, made inside the FMU's library; with ``wrt``, the sensitivities too
-    (those to a rotor's start value folded into its parameters' by ``chain``)."""
+    (those to a rotor's start value folded into its parameters' by ``chain``; those to the
+    parameters ``held``, which the span does not depend on, 0)."""
     from ..motion import input_names
 
     drive, torques = payload.inputs()
@@ -320,9 +328,10 @@ def _run_span_native(
     names, steps = [], []
     if wrt is not None:
         starts = sorted(chain or {})
-        names = list(wrt.names) + starts
+        names = [n for n in wrt.names if n not in held] + starts
         # A start value's step: 1e-6 of its size, at least 1e-9 (rad).
-        steps = [*wrt.steps, *(max(1e-9, 1e-6 * abs(chain[n][0])) for n in starts)]
+        own = [s for n, s in zip(wrt.names, wrt.steps, strict=True) if n not in held]
+        steps = [*own, *(max(1e-9, 1e-6 * abs(chain[n][0])) for n in starts)]
     result = experiment.run(
         slave,
         payload.time[span],
@@ -338,9 +347,12 @@ def _run_span_native(
     if not values[span].flags.c_contiguous:
         values[span] = result.outputs
     if wrt is not None and result.sensitivities is not None:
-        p = len(wrt.names)
-        jac = result.sensitivities[:, :, :p].copy()
-        exact = result.departures[:p] == 0
+        own = [j for j, n in enumerate(wrt.names) if n not in held]
+        p = len(own)
+        jac = np.zeros((result.sensitivities.shape[0], result.sensitivities.shape[1], len(wrt.names)))
+        jac[:, :, own] = result.sensitivities[:, :, :p]
+        exact = np.ones(len(wrt.names), dtype=bool)
+        exact[own] = result.departures[:p] == 0
         for m, start in enumerate(starts):
             for name, d in chain[start][1].items():
                 j = wrt.names.index(name)

@@ -65,24 +65,27 @@ class StartResult:
     t0: float = 0.0
 
 
-def jacobian(problem: Problem, z, r0, segment: float | None, step: float) -> tuple:
-    """(J, notes): J of the residuals at z: from the FMU's sensitivities (one native call an
-    experiment, :mod:`stickslip.experiment`) where the SPEC's ``jacobian`` says so and the FMU
-    has them; forward differences of free runs with ``step`` for the columns whose event
-    pattern changed within the sensitivities' step, and for all where there are none."""
+def jacobian(problem: Problem, z, r0, segment: float | None, step: float, columns=None) -> tuple:
+    """(J, notes): J of the residuals at z (its ``columns``, default all): from the FMU's
+    sensitivities (one native call an experiment, :mod:`stickslip.experiment`) where the SPEC's
+    ``jacobian`` says so and the FMU has them; forward differences of free runs with ``step``
+    for the columns whose event pattern changed within the sensitivities' step, and for all
+    where there are none."""
+    columns = np.arange(len(z)) if columns is None else np.asarray(columns, dtype=int)
     if problem.exact_jacobians:
         runs = problem.runs([z], segment, problem.sensitivity_steps(z))[0]
         J, exact = (None, None) if Problem.failed(runs) else problem.residual_jacobian(runs, z)
         if J is not None:
+            J, exact = J[:, columns], exact[columns]
             problem.count_columns(exact)
             if exact.all():
                 return J, []
-            columns = np.flatnonzero(~exact)
-            Jd, notes = differences(problem, z, r0, segment, step, columns)
-            J[:, columns] = Jd
-            names = ", ".join(problem.spec.estimates[j].name for j in columns)
+            again = np.flatnonzero(~exact)
+            Jd, notes = differences(problem, z, r0, segment, step, columns[again])
+            J[:, again] = Jd
+            names = ", ".join(problem.spec.estimates[j].name for j in columns[again])
             return J, [*notes, f"{names}: the event pattern changed within the sensitivities' step; differences"]
-    return differences(problem, z, r0, segment, step)
+    return differences(problem, z, r0, segment, step, columns)
 
 
 def differences(problem: Problem, z, r0, segment: float | None, step: float, columns=None) -> tuple:
@@ -187,8 +190,19 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     if segment is not None and problem.exact_jacobians:
         tol = TOLERANCE["multiple_exact"]
     last = {"se": None, "njev": 0}
+    # Multiple shooting moves the model's parameters only: its first segments start from the
+    # start unknowns where single shooting left them (as read, at first), the others from
+    # their own reading, so they would only add a column each to its Jacobians.
+    base = np.clip(np.asarray(z0, dtype=np.float64), 0.0, 1.0)
+    free = np.arange(len(base)) if segment is None else problem.model_columns()
 
-    def fun(z):
+    def full(x):
+        z = base.copy()
+        z[free] = x
+        return z
+
+    def fun(x):
+        z = full(x)
         key = tuple(np.round(z, 15))
         if key not in cache:
             cache.clear()
@@ -196,12 +210,15 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
             history.append((problem.transform.named(problem.transform.theta(z)), 0.5 * float(cache[key] @ cache[key])))
         return cache[key]
 
-    def jac(z):
-        r = fun(z)
-        J, _ = jacobian(problem, z, r, segment, options["diff_step"])
+    def jac(x):
+        r = fun(x)
+        z = full(x)
+        J, _ = jacobian(problem, z, r, segment, options["diff_step"], free)
         last["njev"] += 1
         weights = None if options["loss"] == "linear" else np.sqrt(rho_prime(r, options["loss"], options["f_scale"]))
-        shift, last["se"] = settled(J, r, np.clip(z, 0.0, 1.0), weights)
+        shift, se = settled(J, r, np.clip(x, 0.0, 1.0), weights)
+        last["se"] = np.zeros(len(base))  # a held column does not move: 0 apart between starts
+        last["se"][free] = se
         if shift <= SETTLED[kind] and np.all(np.isfinite(r)):
             raise _Settled(z, shift)
         return J
@@ -209,7 +226,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     try:
         result = least_squares(
             fun,
-            np.clip(z0, 0.0, 1.0),
+            base[free],
             jac=jac,
             bounds=(0.0, 1.0),
             method="trf",
@@ -222,7 +239,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
             gtol=tol,
         )
     except _Settled as done:
-        r = fun(done.z)
+        r = fun(done.z[free])
         result = OptimizeResult(
             x=np.clip(done.z, 0.0, 1.0),
             cost=robust_cost(r, options["loss"], options["f_scale"]),
@@ -233,6 +250,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
             success=True,
             message=f"settled: the Gauss-Newton step is {done.shift:.2g} of a standard error",
         )
+    result.x = full(result.x) if len(result.x) == len(free) and len(free) < len(base) else result.x
     result.se = last["se"]
     return result, history
 

@@ -33,6 +33,8 @@
     segment = 0.1          # s, multiple shooting's segment length
     drop_nan = false       # true: rows with NaN samples are dropped (named in the report), else refused
     error_tolerance = 1e-6 # optional: the FMU's error_tolerance during the fit (else its start value)
+    fit_start = true       # the start state of joints moving at an experiment's first sample is fitted
+                           # with the parameters (stickslip.fit.start.start_unknowns); false: as read
 
 The FMU is stepped from sample to sample of each experiment (variable communication steps),
 so every measured sample is compared with the FMU's output at exactly its time.
@@ -79,6 +81,7 @@ OPTION_DEFAULTS = {
     "horizon": None,
     "stage": "output-error",
     "jacobian": "differences",
+    "fit_start": True,
 }
 MAX_STARTS = 1000
 
@@ -164,6 +167,14 @@ class Estimate:
     low: float
     high: float
     scale: str = "linear"
+    # The experiment whose start state this is (:func:`stickslip.fit.start.start_unknowns`): an
+    # unknown of the fit beside the model's parameters, not one of them (None for those).
+    start_of: str | None = None
+
+    @property
+    def variable(self) -> str:
+        """The FMU variable it sets: its name, or a start unknown's without the experiment."""
+        return self.name if self.start_of is None else self.name[len(self.start_of) + 1 :]
 
 
 @dataclass
@@ -330,7 +341,7 @@ def _options(raw, where: str) -> dict:
         options[key] = float(options[key])
     if options["starts"] > MAX_STARTS:
         raise FitSpecError(f"{where}: starts = {options['starts']}: at most {MAX_STARTS}")
-    for key in ("absolute_sigma", "drop_nan"):
+    for key in ("absolute_sigma", "drop_nan", "fit_start"):
         if not isinstance(options[key], bool):
             raise FitSpecError(f"{where}: {key} = {options[key]!r}: must be true or false")
     options["derivatives"] = _filter(options["derivatives"], f"{where}: derivatives")
