@@ -213,7 +213,7 @@ def test_a_record_that_begins_in_motion_gets_its_start_and_parameters_back_and_r
     """The reference arm's run cut at 0.15 s, mu_k[1] and k[3] from 15 % and 12 % off: the fit
     estimates the start state of both joints with them. Each parameter comes back within 3
     standard errors of the truth, the fitted q_start[i] within 3 of the noiseless record's q at
-    0.15 s, and the fit is trusted. fit.json keeps the start state apart from the parameters;
+    0.15 s, and the fit is trusted. fit.json keeps the start state apart from the parameters (report.md tables it);
     fitted.toml holds it in [start."run"], and its replay command reproduces fit.json's residual
     rms to 1e-9. With fit_start = false the fit starts from the reading and ends at a higher
     cost."""
@@ -242,6 +242,8 @@ def test_a_record_that_begins_in_motion_gets_its_start_and_parameters_back_and_r
         s = states[f"run:q_start[{i}]"]
         assert s["experiment"] == "run" and s["variable"] == f"q_start[{i}]"
         assert abs(s["value"] - truth[column][0]) <= 3 * s["std_error"], (i, s, truth[column][0])
+    report = (out / "report.md").read_text()
+    assert "| start unknown |" in report and "| `run:qd_start[1]` |" in report
     toml = (out / "fitted.toml").read_text()
     assert '[start."run"]' in toml and '"qd_start[3]" = ' in toml
     line = next(x for x in toml.splitlines() if "--experiment 'run'" in x)
@@ -256,3 +258,16 @@ def test_a_record_that_begins_in_motion_gets_its_start_and_parameters_back_and_r
     read = fit(fc.write_spec(tmp_path / "read.toml", {**doc, "options": {"fit_start": False}}), workers=0)
     assert read["start_state"] == {} and set(read["parameters"]) == set(names)
     assert read["cost"] > r["cost"], (read["cost"], r["cost"])
+
+
+def test_a_fitted_start_for_a_joint_the_data_read_at_rest_is_refused(tmp_path):
+    """replay with a fitted start of joint 1 on a record whose first sample reads it at rest (a
+    fitted.toml of another SPEC): a ReplayError naming the table and the variable, before any
+    run."""
+    from stickslip.fit.replay import ReplayError, replay
+    from stickslip.fit.spec import load
+
+    still = fc.write_data(tmp_path / "still.csv", fc.measured(0.6, seed=2))
+    spec = load(fc.spec(fc.experiment(still), ["mu_k[1]"]), replay=True)
+    with pytest.raises(ReplayError, match=r"\[start.still\] q_start\[1\]: the experiment's first sample does not read"):
+        replay(spec, None, {"mu_k[1]": 0.17}, starts={"still": {"q_start[1]": 0.1}}, plot=False, say=lambda x: None)

@@ -43,6 +43,11 @@ from .spec import FitSpec, FitSpecError, load
 from .start import START_SIGMAS, start_unknowns
 
 CORRELATED = 0.95  # |correlation| above which two parameters are reported as not separable
+# |correlation| at or above which the fit is not trusted: the data fix one combination of the two
+# and next to nothing across it, a valley so narrow that its curvature, not the linearization,
+# sets where along it the estimate lies (measured: reference draw 104 of the identification
+# benchmark, mu_k[1] and b_v[1] at -1.000, b_v[1] 5.5 standard errors from the truth).
+UNIDENTIFIABLE = 0.999
 SAME_COST = 0.95  # starts whose cost the data cannot reject at this level are "of similar cost"
 # The FMU's own numerical error: the answer is redone at a tenfold tighter error_tolerance
 # while the standard errors move by more than SE_STEP_CHANGE with a 3x Jacobian step, or a
@@ -709,9 +714,12 @@ def _summarize(
                 f"{e.name} = {theta[j]:.6g} sits on its {side} bound: the data may want it beyond "
                 f"[{e.low:g}, {e.high:g}], and its standard error does not describe that"
             )
+    unidentifiable = []
     for a in range(len(names)):
         for b in range(a + 1, len(names)):
             c = unc.correlation[a, b]
+            if math.isfinite(c) and abs(c) >= UNIDENTIFIABLE:
+                unidentifiable.append((names[a], names[b], float(c)))
             if math.isfinite(c) and abs(c) > CORRELATED:
                 warnings.append(
                     f"{names[a]} and {names[b]} are not separately identifiable from these measurements "
@@ -807,13 +815,20 @@ def _summarize(
     residual_rms = _residual_rms(spec, runs)
     m = len(r)
     failures = problem.failures
-    trusted = not misfit and not similar and not numerically_limited and lower is None
+    trusted = not misfit and not similar and not numerically_limited and lower is None and not unidentifiable
     if misfit:
         verdict = "NOT TRUSTED: " + misfit[0].split(":")[0] + " — the model does not follow the data (see the warnings)"
     elif similar:
         verdict = "NOT UNIQUE: another start ended in a different minimum the data cannot reject"
     elif lower is not None:
         verdict = "NOT A MINIMUM: a point along a profile has a lower cost (see the warnings)"
+    elif unidentifiable:
+        a, b, c = max(unidentifiable, key=lambda x: abs(x[2]))
+        verdict = (
+            f"NOT IDENTIFIABLE: {a} and {b} have correlation {c:+.4f}, the data fix only a combination of the "
+            "two; their standard errors, taken from a valley that narrow, are not reliable (fix one of them, or "
+            "measure a motion that separates them)"
+        )
     elif numerically_limited:
         verdict = (
             "NOT TRUSTED: the FMU's numerical error, not the data, limits "

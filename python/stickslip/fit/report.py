@@ -169,6 +169,20 @@ def report_md(result: dict, spec, figures: list) -> str:
         "root sum of squares by the FMU's numerical error where it exceeds that (the estimate's move between the "
         "last two error tolerances) and by the distance to other minima of similar cost (NOT UNIQUE).",
     ]
+    if result.get("start_state"):
+        lines += [
+            "",
+            "Start state, estimated with the parameters (joints moving at an experiment's first sample, whose "
+            "reading through the derivative filter at the record's edge is uncertain):",
+            "",
+            "| start unknown | estimate | standard error | read | bounds | at bound |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, p in result["start_state"].items():
+            lines.append(
+                f"| `{name}` | {p['value']:.8g} | {p['std_error']:.3g} | {p['read']:.8g} | "
+                f"[{p['bounds'][0]:.8g}, {p['bounds'][1]:.8g}] | {'yes' if p['at_bound'] else 'no'} |"
+            )
     lines += [
         "",
         f"Cost {result['cost']:.6g}; rms normalized residual {result['rms_normalized_residual']:.4g} "
