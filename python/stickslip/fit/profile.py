@@ -70,6 +70,8 @@ def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float, 
     for j in range(p):
         if not (math.isfinite(se[j]) and se[j] > 0 and C[j, j] > 0):
             continue
+        if problem.spec.estimates[j].start_of is not None:  # a start unknown is not profiled
+            continue
         path = C[:, j] / C[j, j]
         for side in (-1.0, 1.0):
             points.append(_project(problem, theta + side * 2.0 * se[j] * path))
