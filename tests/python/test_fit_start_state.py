@@ -271,3 +271,42 @@ def test_a_fitted_start_for_a_joint_the_data_read_at_rest_is_refused(tmp_path):
     spec = load(fc.spec(fc.experiment(still), ["mu_k[1]"]), replay=True)
     with pytest.raises(ReplayError, match=r"\[start.still\] q_start\[1\]: the experiment's first sample does not read"):
         replay(spec, None, {"mu_k[1]": 0.17}, starts={"still": {"q_start[1]": 0.1}}, plot=False, say=lambda x: None)
+
+
+def test_each_experiments_start_moves_its_own_rows_only(tmp_path, monkeypatch):
+    """Two experiments cut at 0.15 s and 0.2 s, fitted together: each has its own start unknowns
+    (named after it), a run of one takes only its own, and in the residuals' Jacobian (from the
+    FMU's sensitivities, at fixed 0.1 ms sub-steps) a start unknown's column is 0 on the other
+    experiment's rows, exactly, and matches central differences of free runs on its own (1e-3
+    of its largest value)."""
+    fixed = {"h_min": 1e-4, "h_max": 1e-4, "tolerance": 1e-13}
+    columns = fc.measured(0.45, seed=2)
+    experiments = []
+    for name, t0 in (("a", 0.15), ("b", 0.2)):
+        data = fc.write_data(tmp_path / f"{name}.csv", _cut(columns, t0))
+        experiments.append(fc.experiment(data, name=name, parameters=fixed))
+    problem, unknowns = _problem(fc.spec(experiments, ["mu_k[1]"], {"mu_k[1]": 0.18}))
+    assert [u.name for u in unknowns] == [
+        f"{e}:{v}[{i}]" for e in "ab" for i in (1, 3) for v in ("q_start", "qd_start")
+    ]
+    z = problem.transform.z([0.18, *(u.initial for u in unknowns)])
+    assert sorted(problem.parameters(z, 1)) == ["mu_k[1]", "q_start[1]", "q_start[3]", "qd_start[1]", "qd_start[3]"]
+    assert problem.parameters(z, 1)["q_start[1]"] == unknowns[4].initial
+    monkeypatch.setenv("STICKSLIP_PER_POINT", "0")
+    runs = problem.runs([z], None, problem.sensitivity_steps(z))[0]
+    J, exact = problem.residual_jacobian(runs, z)
+    assert exact.all(), exact
+    rows_a = 2 * len(problem.spec.experiments[0].time)
+    for j, u in enumerate(unknowns, start=1):
+        own, other = (
+            (slice(0, rows_a), slice(rows_a, None)) if u.start_of == "a" else (slice(rows_a, None), slice(0, rows_a))
+        )
+        assert np.all(J[other, j] == 0.0), u.name
+        plus, minus = np.array(z), np.array(z)
+        plus[j] += 1e-4
+        minus[j] -= 1e-4
+        rp, rm = problem.residuals([plus, minus], None)
+        reference = (rp - rm) / 2e-4
+        assert np.all(reference[other] == 0.0), u.name
+        scale = np.max(np.abs(reference[own]))
+        assert scale > 0 and np.max(np.abs(J[own, j] - reference[own])) <= 1e-3 * scale, u.name
