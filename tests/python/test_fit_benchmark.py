@@ -394,11 +394,12 @@ def test_the_truth_lies_within_3_standard_errors_as_often_as_the_standard_errors
 def test_a_start_in_motion_fitted_with_the_parameters_brings_the_iiwa_to_the_truth(tmp_path):
     """The KUKA iiwa's draw of seed 101 (1.5 s, mu_k[4], k[4], b_v[4]): joints 2 and 4 sag from
     their relaxed springs at t = 0, so the data start in motion, and their start state read off
-    the derivative filter at the record's edge is off (q' about -0.011 rad/s for a true 0). With
-    the start state fitted (the default, fit_start = true) the fit ends at the truth's minimum
-    (cost ratio <= 1), trusted, every estimate within 3 standard errors, and the fitted q' of both
-    joints within 3 of their true 0. With the start as read (fit_start = false) it ends above the
-    truth's cost with a misfit, NOT TRUSTED, and a warning names the moving joints."""
+    the derivative filter at the record's edge is off (joint 2's q' -0.0077 rad/s for a true 0,
+    90 of the fitted standard errors). With the start state fitted (the default, fit_start = true)
+    the fit ends at the truth's minimum (cost ratio <= 1), trusted, every estimate within 3
+    standard errors, and the fitted q' of both joints within 3 of their true 0. With the start
+    as read (fit_start = false) it ends above the truth's cost with a misfit, NOT TRUSTED, and a
+    warning names the moving joints."""
     from stickslip.fit import fit
     from stickslip.fit.benchmark import generate, simulation_cost
 
@@ -426,7 +427,9 @@ def test_a_start_in_motion_fitted_with_the_parameters_brings_the_iiwa_to_the_tru
     }
     for name in ("run:qd_start[2]", "run:qd_start[4]"):
         s = fitted["start_state"][name]
-        assert abs(s["read"]) > 3 * s["std_error"] and abs(s["value"]) <= 3 * s["std_error"], (name, s)
+        assert abs(s["value"]) <= 3 * s["std_error"], (name, s)
+    s = fitted["start_state"]["run:qd_start[2]"]  # read -0.0077 rad/s; joint 4's within its noise, as 0
+    assert abs(s["read"]) > 30 * s["std_error"], s
     read = json.loads(json.dumps(spec))
     read.setdefault("options", {})["fit_start"] = False
     as_read = fit(read, workers=0)
