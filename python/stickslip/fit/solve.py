@@ -190,9 +190,10 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     if segment is not None and problem.exact_jacobians:
         tol = TOLERANCE["multiple_exact"]
     last = {"se": None, "njev": 0}
-    # Multiple shooting moves the model's parameters only: its first segments start from the
-    # start unknowns where single shooting left them (as read, at first), the others from
-    # their own reading, so they would only add a column each to its Jacobians.
+    # Multiple shooting moves the model's parameters only: each experiment's first segment
+    # starts from its start unknowns where they are (as read: multiple shooting comes before
+    # single shooting), the other segments from their own reading, so the start unknowns would
+    # only add a column each to its Jacobians.
     base = np.clip(np.asarray(z0, dtype=np.float64), 0.0, 1.0)
     free = np.arange(len(base)) if segment is None else problem.model_columns()
 
@@ -241,7 +242,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
     except _Settled as done:
         r = fun(done.z[free])
         result = OptimizeResult(
-            x=np.clip(done.z, 0.0, 1.0),
+            x=np.clip(done.z[free], 0.0, 1.0),
             cost=robust_cost(r, options["loss"], options["f_scale"]),
             fun=r,
             nfev=len(history),
@@ -250,7 +251,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
             success=True,
             message=f"settled: the Gauss-Newton step is {done.shift:.2g} of a standard error",
         )
-    result.x = full(result.x) if len(result.x) == len(free) and len(free) < len(base) else result.x
+    result.x = full(result.x)
     result.se = last["se"]
     return result, history
 
