@@ -178,3 +178,29 @@ def toml(doc: dict) -> str:
 def write_spec(path: Path, doc: dict) -> Path:
     path.write_text(toml(doc))
     return path
+
+
+def central_column(problem, z, j: int, segment=None, h: float = 1e-4):
+    """Column j of a fit Problem's residual Jacobian in z by central differences of free runs
+    (single shooting, or multiple shooting with ``segment`` s): z_j moved by ±h of its range."""
+    plus, minus = np.array(z, dtype=np.float64), np.array(z, dtype=np.float64)
+    plus[j] += h
+    minus[j] -= h
+    rp, rm = problem.residuals([plus, minus], segment)
+    return (rp - rm) / (2 * h)
+
+
+def sensitivities_against_differences(problem, z, segment=None, tolerance: float = 1e-3):
+    """The residuals' Jacobian at z from the FMU's sensitivities (Problem.residual_jacobian),
+    checked: every column exact, and within ``tolerance`` of its largest value of
+    :func:`central_column` (run at fixed sub-steps, where both differentiate the same scheme).
+    Returns it."""
+    runs = problem.runs([z], segment, problem.sensitivity_steps(z))[0]
+    J, exact = problem.residual_jacobian(runs, z)
+    assert exact.all(), exact
+    for j in range(len(z)):
+        reference = central_column(problem, z, j, segment)
+        scale = np.max(np.abs(reference))
+        worst = np.max(np.abs(J[:, j] - reference))
+        assert scale > 0 and worst <= tolerance * scale, (problem.spec.estimates[j].name, worst / scale)
+    return J

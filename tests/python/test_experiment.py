@@ -85,20 +85,7 @@ def test_the_residuals_jacobian_from_sensitivities_is_their_differences(tmp_path
     problem = _problem(tmp_path, ["mu_k[1]", "mu_s[1]", "k[3]"], fixed, duration=0.4)
     monkeypatch.setenv("STICKSLIP_PER_POINT", "0")
     z = problem.transform.z([0.18, 0.23, 7e5])
-    runs = problem.runs([z], segment, problem.sensitivity_steps(z))[0]
-    J, exact = problem.residual_jacobian(runs, z)
-    assert exact.all(), exact
-    h = 1e-4
-    for j in range(len(z)):
-        plus, minus = np.array(z), np.array(z)
-        plus[j] += h
-        minus[j] -= h
-        rp, rm = problem.residuals([plus, minus], segment)
-        reference = (rp - rm) / (2 * h)
-        scale = np.max(np.abs(reference))
-        assert scale > 0
-        worst = np.max(np.abs(J[:, j] - reference))
-        assert worst <= 1e-3 * scale, (j, worst / scale)
+    fc.sensitivities_against_differences(problem, z, segment)
 
 
 @pytest.mark.slow
@@ -148,11 +135,7 @@ def test_a_motor_arms_jacobian_carries_the_rotors_start_through_the_gear(tmp_pat
     for j in columns:
         best = np.inf
         for h in (1e-3, 1e-4, 1e-5, 1e-6):
-            plus, minus = np.array(z), np.array(z)
-            plus[j] += h
-            minus[j] -= h
-            rp, rm = problem.residuals([plus, minus], 0.1)
-            reference = (rp - rm) / (2 * h)
+            reference = fc.central_column(problem, z, j, 0.1, h)
             scale = np.max(np.abs(reference))
             assert scale > 0 and exact[j], (spec.estimates[j].name, exact)
             best = min(best, np.max(np.abs(J[:, j] - reference)) / scale)
