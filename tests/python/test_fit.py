@@ -972,7 +972,7 @@ def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_r
     values of the wrong type, NaN, ±inf, huge numbers, strings) and of its data file (rows
     shuffled, swapped or reversed, the file truncated or emptied, bytes garbled, cells not
     numbers or huge, columns dropped or duplicated, ragged rows), and of the TOML text itself
-    (with the keys of issue 36: start, derivatives, stage, horizon):
+    (with the keys of issue 36: start, derivatives, stage, horizon; and of issue 43: fit_start):
     ``stickslip.fit.spec.load`` either returns a spec or raises FitSpecError with a one-line
     message; nothing else."""
     from stickslip.fit.spec import FitSpec, FitSpecError, load
@@ -994,6 +994,7 @@ def test_fuzzed_specs_and_data_load_or_are_refused_in_one_line(tmp_path, short_r
         doc.setdefault("options", {})["stage"] = rng.choice(["output-error", "equation-error"])
         if rng.random() < 0.5:
             doc["options"].update(horizon=0.01, shooting="auto")
+        doc["options"]["fit_start"] = rng.choice([True, False])  # issue 43's start unknowns
         data = root / "run.csv"
         what = []
         for _ in range(rng.choice([1, 1, 2, 3])):
