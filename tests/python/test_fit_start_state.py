@@ -147,6 +147,7 @@ def test_a_fitted_start_of_bad_form_in_fitted_toml_is_refused(tmp_path):
     assert fitted_starts(good) == {"run": {"q_start[1]": 0.1, "qd_start[1]": -0.5}}
     for body, message in (
         ('[start."run"]\n"k[3]" = 1.0\n', r"\[start.run\] k\[3\]: only q_start"),
+        ('[start."run"]\n"q_start[a]" = 1.0\n', r"\[start.run\] q_start\[a\]: only q_start"),
         ('[start."run"]\n"q_start[1]" = nan\n', "must be a finite number"),
         ('[start."run"]\n"q_start[1]" = "x"\n', "must be a finite number"),
         ('[start."run"]\n"q_start[1]" = true\n', "must be a finite number"),

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import tomllib
 from pathlib import Path
 
@@ -77,7 +78,7 @@ def fitted_starts(path) -> dict:
         if not isinstance(part, dict):
             raise ReplayError(f"--fitted {path}: [start.{name}] must be a table of q_start[i] / qd_start[i] = value")
         for variable, value in part.items():
-            if not variable.startswith(("q_start[", "qd_start[")):
+            if not re.fullmatch(r"qd?_start\[[1-9][0-9]*\]", variable):
                 raise ReplayError(f"--fitted {path}: [start.{name}] {variable}: only q_start[i] and qd_start[i]")
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ReplayError(f"--fitted {path}: [start.{name}] {variable} = {value!r}: must be a finite number")

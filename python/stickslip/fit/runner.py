@@ -292,9 +292,9 @@ def native_runs() -> bool:
 
 def _rotor_chain(segments, k: int, known: dict, value, wrt, rotor: dict) -> dict:
     """{theta_m_start[i]: (its value, {parameter: derivative})}: how the rotors' start of segment k
-    (:meth:`Segments.rotor`, from the gear's k[i] and Delta[i] and the fitted start state) moves with the parameters the
-    sensitivities are taken to, by central differences of that closed form (its rounding ~1e-10
-    of the derivative)."""
+    (:meth:`Segments.rotor`, from the gear's k[i] and Delta[i] and the fitted start state) moves
+    with the parameters the sensitivities are taken to, by central differences of that closed
+    form (its rounding ~1e-10 of the derivative)."""
     out = {}
     for name, step in zip(wrt.names, wrt.steps, strict=True):
         if not name.startswith(("k[", "Delta[", "q_start[", "qd_start[")) or name not in known:

@@ -163,7 +163,7 @@ def start_states(experiment, starts, md, unzipdir=None, known: dict | None = Non
                 qdd[row, i - 1] = 0.0 if slow[row] else accel[k]
                 said = f"moving: q = {q[row, i - 1]:.8g}, q' = {qd[row, i - 1]:.6g} from the derivative filter"
                 if row == 0:
-                    moving[i] = (float(spread[0][0]), float(spread[1][0]), float(rate[k]), c.resolution or 0.0)
+                    moving[i] = (float(spread[0][0]), float(spread[1][0]), c.resolution or 0.0)
             if row == 0:
                 how[i] = said
     columns = [i - 1 for i in joints]
@@ -189,7 +189,7 @@ def _spans(moving: dict) -> dict:
     the first sample: START_SIGMAS times the noise the reading carries there, and two counts of
     the encoder for q. (The benchmark's joints that sag from rest were read 2-3.3 of those
     standard deviations off, q̇ = 0 well within.)"""
-    return {i: (START_SIGMAS * sq + 2.0 * count, START_SIGMAS * sv) for i, (sq, sv, _, count) in moving.items()}
+    return {i: (START_SIGMAS * sq + 2.0 * count, START_SIGMAS * sv) for i, (sq, sv, count) in moving.items()}
 
 
 def start_unknowns(experiment, segments) -> list:
