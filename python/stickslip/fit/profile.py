@@ -16,6 +16,11 @@ fit. A parameter is profiled when it is a static friction coefficient μ_s, or w
 at ±2 standard errors along the path departs from the parabola's 2σ̂² by more than a factor
 of two. The interval's half-width, divided by 1.96, stands as the parameter's standard
 error where it is the larger (fit.json keeps both).
+
+Each side of each profiled parameter is a walk of points that depend on the costs before them;
+the walks go side by side (:func:`_drive`), one batch of runs per round, so the cluster's
+workers are all busy and the profiles take the wall time of the longest walk, with the same
+points and answers as walks taken one after another.
 """
 
 from __future__ import annotations
@@ -83,65 +88,104 @@ def quadratic_check(problem: Problem, theta, cost0: float, C, se, scale: float, 
     return ratios
 
 
-def profile_interval(
-    problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float, lowest: Lowest | None = None
-) -> dict:
-    """The 95 % profile interval of θ_j: walk each side in doubling steps of one SE until
-    the profile cost passes ``threshold`` above ``cost0`` (or a bound stops it), then bisect."""
+def _profile_cost(problem: Problem, theta, path, j: int, others: list, lstsq, delta: float):
+    """A generator of the profile cost at θ_j = θ̂_j + δ: it yields the two points it needs in
+    turn (the point on the profile path, then the others' Gauss-Newton step from there on its
+    own residuals with the optimum's J), is sent each one's (cost, residual), and returns the
+    lower cost."""
+    base = _project(problem, theta + delta * path)
+    cost, r = yield base
+    if r is None:
+        return math.inf
+    step = np.zeros_like(theta)
+    step[others] = -lstsq @ r
+    moved = _project(problem, base + step)
+    moved[j] = base[j]
+    cost2, _ = yield moved
+    return min(cost, cost2)
+
+
+def _profile_side(problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float, side: float):
+    """A generator of one side of θ_j's 95 % profile interval (yields points, is sent their
+    (cost, residual), :func:`_drive`): walk in doubling steps of one SE until the profile cost
+    passes ``threshold`` above ``cost0`` (or a bound stops it), then bisect. Returns (end,
+    open): open where the walk ended before the cost passed the threshold."""
     est = problem.spec.estimates[j]
     path = C[:, j] / C[j, j]
     others = [k for k in range(len(theta)) if k != j]
-    Jo = J[:, others]
-    lstsq = np.linalg.pinv(Jo)
-    runs = 0
+    lstsq = np.linalg.pinv(J[:, others])
 
-    def profile_cost(delta: float) -> float:
-        nonlocal runs
-        base = _project(problem, theta + delta * path)
-        ((cost, r),) = _evaluate(problem, [base], lowest)
-        runs += 1
-        if r is None:
-            return math.inf
-        step = np.zeros_like(theta)
-        step[others] = -lstsq @ r
-        moved = _project(problem, base + step)
-        moved[j] = base[j]
-        ((cost2, _),) = _evaluate(problem, [moved], lowest)
-        runs += 1
-        return min(cost, cost2)
+    def above(delta: float):
+        cost = yield from _profile_cost(problem, theta, path, j, others, lstsq, side * delta)
+        return cost - cost0 > threshold
 
-    ends = []
-    for side in (-1.0, 1.0):
-        limit = (est.low - theta[j]) if side < 0 else (est.high - theta[j])
-        inside, outside, bounded = 0.0, None, False
-        delta = se_j
-        for _ in range(MAX_DOUBLINGS):
-            if abs(delta) >= abs(limit):
-                delta, bounded = abs(limit), True
-            if profile_cost(side * delta) - cost0 > threshold:
-                outside = delta
-                break
-            inside = delta
-            if bounded:
-                break
-            delta *= 2.0
-        if outside is None:
-            ends.append((theta[j] + side * inside, not bounded))
-            continue
-        for _ in range(BISECTIONS):
-            mid = 0.5 * (inside + outside)
-            if profile_cost(side * mid) - cost0 > threshold:
-                outside = mid
-            else:
-                inside = mid
-        ends.append((theta[j] + side * 0.5 * (inside + outside), False))
-    (low, low_open), (high, high_open) = ends
-    return {
-        "interval_95": [float(low), float(high)],
-        "open": [bool(low_open), bool(high_open)],  # the walk ended before the cost passed the threshold
-        "std_error_profile": float(max(theta[j] - low, high - theta[j]) / 1.96),
-        "runs": runs,
-    }
+    limit = (est.low - theta[j]) if side < 0 else (est.high - theta[j])
+    inside, outside, bounded = 0.0, None, False
+    delta = se_j
+    for _ in range(MAX_DOUBLINGS):
+        if abs(delta) >= abs(limit):
+            delta, bounded = abs(limit), True
+        if (yield from above(delta)):
+            outside = delta
+            break
+        inside = delta
+        if bounded:
+            break
+        delta *= 2.0
+    if outside is None:
+        return theta[j] + side * inside, not bounded
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (inside + outside)
+        if (yield from above(mid)):
+            outside = mid
+        else:
+            inside = mid
+    return theta[j] + side * 0.5 * (inside + outside), False
+
+
+def _drive(problem: Problem, walks: list, lowest: Lowest | None = None) -> list:
+    """Runs the point generators ``walks`` side by side: each round evaluates the next point of
+    every walk not yet ended in one batch (their runs go to the cluster together), so the walks
+    take the wall time of the longest, not of their sum. Returns [(value, runs)] per walk: what
+    it returned and how many points it asked for. Each walk sees exactly the points and costs
+    it would alone, so the answer does not depend on how many run beside it."""
+    out = [None] * len(walks)
+    runs = [0] * len(walks)
+    pending = {}
+
+    def advance(k: int, sent) -> None:
+        try:
+            pending[k] = walks[k].send(sent)
+            runs[k] += 1
+        except StopIteration as end:
+            pending.pop(k, None)
+            out[k] = (end.value, runs[k])
+
+    for k in range(len(walks)):
+        advance(k, None)
+    while pending:
+        ks = list(pending)
+        for k, result in zip(ks, _evaluate(problem, [pending[k] for k in ks], lowest), strict=True):
+            advance(k, result)
+    return out
+
+
+def profile_intervals(problem: Problem, theta, cost0: float, J, C, wanted: dict, lowest: Lowest | None = None) -> dict:
+    """The 95 % profile intervals of the parameters in ``wanted`` ({j: (se_j, threshold)}), both
+    sides of every one walked side by side (:func:`_drive`): {j: entry}."""
+    keys = [(j, side) for j in wanted for side in (-1.0, 1.0)]
+    walks = [_profile_side(problem, theta, cost0, J, C, j, *wanted[j], side) for j, side in keys]
+    ends = dict(zip(keys, _drive(problem, walks, lowest), strict=True))
+    out = {}
+    for j in wanted:
+        ((low, low_open), low_runs), ((high, high_open), high_runs) = ends[(j, -1.0)], ends[(j, 1.0)]
+        out[j] = {
+            "interval_95": [float(low), float(high)],
+            "open": [bool(low_open), bool(high_open)],  # the walk ended before the cost passed the threshold
+            "std_error_profile": float(max(theta[j] - low, high - theta[j]) / 1.96),
+            "runs": low_runs + high_runs,
+        }
+    return out
 
 
 def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest: Lowest | None = None) -> dict:
@@ -152,7 +196,7 @@ def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest
     names = [e.name for e in problem.spec.estimates]
     C = np.linalg.pinv(J.T @ J)
     ratios = quadratic_check(problem, theta, cost0, C, unc.std_error_classical, scale, lowest)
-    out = {}
+    wanted, ratio_of = {}, {}
     for j, name in enumerate(names):
         if problem.spec.estimates[j].start_of is not None:  # a start unknown: its standard error is enough
             continue
@@ -164,8 +208,12 @@ def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest
             continue
         inflation = max(1.0, (unc.std_error_sandwich[j] / unc.std_error_classical[j]) ** 2)
         threshold = 0.5 * float(chi2.ppf(0.95, 1)) * scale * inflation
-        entry = profile_interval(problem, theta, cost0, J, C, j, float(unc.std_error[j]), threshold, lowest)
+        wanted[j] = (float(unc.std_error[j]), threshold)
+        ratio_of[j] = (ratio, quadratic)
+    out = {}
+    for j, entry in profile_intervals(problem, theta, cost0, J, C, wanted, lowest).items():
+        ratio, quadratic = ratio_of[j]
         entry["cost_ratio_at_2se"] = float(ratio) if math.isfinite(ratio) else None
         entry["quadratic"] = bool(quadratic)
-        out[name] = entry
+        out[names[j]] = entry
     return out
