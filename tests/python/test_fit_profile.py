@@ -16,7 +16,7 @@ import pytest
 from scipy.stats import chi2
 
 from stickslip.fit.problem import Transform
-from stickslip.fit.profile import BISECTIONS, Lowest, _drive, _profile_side, profile_intervals
+from stickslip.fit.profile import REFINEMENTS, Lowest, _crossing, _drive, _profile_side, profile_intervals
 from stickslip.fit.spec import Estimate
 
 
@@ -46,9 +46,8 @@ def _linear(A, b, bounds):
 def test_a_linear_models_profile_interval_is_the_standard_errors_1_96_times():
     """For r = Aθ − b the profile cost is cost0 + ½δ²/C_jj exactly (C = (AᵀA)⁻¹) and the one
     Gauss-Newton step of the others is exact, so the interval's ends are θ̂_j ± 1.96 SE_j: the
-    walk brackets the crossing between two doublings of one SE and bisects it BISECTIONS times,
-    so each end lies within SE/2^(BISECTIONS+1) of it, and the interval's ends straddle it
-    symmetrically."""
+    walk brackets the crossing between the doublings of one SE and two, and regula falsi in δ²
+    meets it with its first point, to rounding."""
     rng = np.random.default_rng(3)
     A = rng.normal(size=(40, 3)) @ np.diag([1.0, 30.0, 0.2])
     b = rng.normal(size=40)
@@ -64,13 +63,14 @@ def test_a_linear_models_profile_interval_is_the_standard_errors_1_96_times():
         low, high = got[j]["interval_95"]
         exact = math.sqrt(2.0 * threshold * C[j, j])  # = 1.96 SE_j
         assert abs(exact / se[j] - 1.959964) < 1e-5
-        resolution = se[j] / 2 ** (BISECTIONS + 1)
+        resolution = 1e-9 * se[j]
         assert abs((theta[j] - low) - exact) <= resolution, (j, theta[j] - low, exact)
         assert abs((high - theta[j]) - exact) <= resolution, (j, high - theta[j], exact)
         assert got[j]["open"] == [False, False]
         assert abs(got[j]["std_error_profile"] * 1.96 - exact) <= resolution
-        # doubling 1 SE (inside), 2 SE (outside), then the bisections: two points each
-        assert got[j]["runs"] == 2 * 2 * (2 + BISECTIONS)
+        # doubling 1 SE (inside), 2 SE (outside), then the refinements: two runs each; the second
+        # refinement is skipped where the first lands on the crossing to the last bit
+        assert 2 * 2 * (2 + 1) <= got[j]["runs"] <= 2 * 2 * (2 + REFINEMENTS)
 
 
 def test_a_bound_inside_the_interval_leaves_that_side_open_at_the_bound():
@@ -82,7 +82,7 @@ def test_a_bound_inside_the_interval_leaves_that_side_open_at_the_bound():
     got = profile_intervals(problem, theta, 0.0, A, C, {0: (1.0, 1.92)})[0]
     assert got["interval_95"][0] == pytest.approx(0.0, abs=1e-12)  # the bound, before the cost reached 1.92
     assert got["open"] == [False, False]  # the bound stopped it: not open, the data cannot go there
-    assert got["interval_95"][1] == pytest.approx(0.5 + math.sqrt(2 * 1.92), abs=1.0 / 32)
+    assert got["interval_95"][1] == pytest.approx(0.5 + math.sqrt(2 * 1.92), abs=1e-9)
 
 
 def _one_sided():
@@ -118,11 +118,23 @@ def test_walks_side_by_side_see_what_each_sees_alone():
     assert points == sorted(tuple(batch[0]) for _, asked in alone for batch in asked)
     assert len(problem.asked) == max(len(a) for _, a in alone)  # rounds: the longest walk's points
     # the slow side reaches the bound 0 below a cost of 0.5 (½(0.4δ)² < 0.5 up to δ = 2.5); the
-    # steep side passes it near δ = 1/8 (½(8δ)² = 0.5), bracketed in [0.1, 0.2] and bisected
+    # steep side passes it near δ = 1/8 (½(8δ)² = 0.5; the coupling to θ_1 moves it by a few %)
     (low, low_open), _ = together[0]
     (high, high_open), _ = together[1]
     assert low == 0.0 and not low_open and not high_open
-    assert abs(high - theta[0] - 0.125) < 0.1 / 2 ** (BISECTIONS + 1) + 0.005
+    assert abs(high - theta[0] - 0.125) < 0.005
+
+
+def test_the_crossing_is_exact_for_a_parabola_and_stays_in_its_bracket():
+    """_crossing: for g = a·δ² − T the line through two points in δ² meets g = 0 exactly;
+    it never leaves the bracket; a failed run's infinite cost gives the bracket's middle."""
+    a, T = 3.0, 1.92
+    g = lambda d: a * d * d - T  # noqa: E731
+    for d_in, d_out in ((0.0, 1.0), (0.5, 0.9), (0.79, 0.81)):
+        assert _crossing((d_in, g(d_in)), (d_out, g(d_out))) == pytest.approx(math.sqrt(T / a), rel=1e-14)
+    # a cost far from a parabola: the answer stays inside
+    assert 0.2 <= _crossing((0.2, -1.0), (0.3, 1e9)) <= 0.3
+    assert _crossing((0.2, -1.0), (0.4, math.inf)) == pytest.approx(0.3)
 
 
 def test_a_lower_point_on_a_profile_is_seen():
