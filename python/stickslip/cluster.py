@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import threading
 
 
 class ClusterError(RuntimeError):
@@ -52,3 +53,42 @@ def connect(scheduler: str | None, workers: int | None):
         silence_logs=logging.ERROR,
     )
     return Client(cluster), cluster
+
+
+class Connecting:
+    """:func:`connect` started in a thread now, so that the caller's own work (reading the data,
+    filtering it) goes on while the LocalCluster's workers start (about a second on 2 cores).
+    ``prepare(client)``, where given, runs in the thread too, once connected (a worker plugin's
+    registration, which waits for every worker to set it up). :meth:`result` waits for both;
+    :meth:`close` ends what was started, for a caller that fails before it needs the cluster."""
+
+    def __init__(self, scheduler: str | None, workers: int | None, prepare=None):
+        self._result, self._error = None, None
+        self._thread = threading.Thread(target=self._run, args=(scheduler, workers, prepare), name="stickslip-connect")
+        self._thread.start()
+
+    def _run(self, scheduler, workers, prepare) -> None:
+        try:
+            self._result = connect(scheduler, workers)
+            if prepare is not None:
+                prepare(self._result[0])
+        except BaseException as e:  # noqa: BLE001 -- raised again in the caller's thread by result()
+            self._error = e
+
+    def result(self):
+        """(client, cluster or None), as :func:`connect` returns them, or the exception of the
+        connection or of ``prepare`` (what was started is closed then)."""
+        self._thread.join()
+        if self._error is not None:
+            self.close()
+            raise self._error
+        return self._result
+
+    def close(self) -> None:
+        """Waits for the start to end and closes the client and the cluster it made."""
+        self._thread.join()
+        if self._result is not None:
+            client, cluster = self._result
+            client.close()
+            if cluster is not None:
+                cluster.close()

@@ -81,18 +81,28 @@ def fit(
     from ..fmu import content_hash, unpacked
 
     digest = content_hash(fmu_data)
-    md = spec.model_description
-    flexible = sorted(int(v.name[8:-1]) for v in md.modelVariables if v.name.startswith("q_start["))
-    known = {e.name: e.initial for e in spec.estimates}
-    payloads = [payload_of(e, md, unpacked(fmu_data, digest), known) for e in spec.experiments]
+    # The cluster starts, and its workers unpack the FMU, while the experiments' start states
+    # are read here (a SPEC that does not load has started nothing).
+    connecting = None
+    if client is None and workers != 0:
+        from ..cluster import Connecting
+
+        connecting = Connecting(scheduler, workers, lambda c: Evaluator.send_fmu(c, fmu_data, digest))
+    try:
+        md = spec.model_description
+        flexible = sorted(int(v.name[8:-1]) for v in md.modelVariables if v.name.startswith("q_start["))
+        known = {e.name: e.initial for e in spec.estimates}
+        payloads = [payload_of(e, md, unpacked(fmu_data, digest), known) for e in spec.experiments]
+    except BaseException:
+        if connecting is not None:
+            connecting.close()
+        raise
     for e, p in zip(spec.experiments, payloads, strict=True):
         say(f"fit: experiment {e.name!r} starts " + _start_text(e, p))
         say(f"fit: experiment {e.name!r}: derivative filter: {_filter_text(e)}")
     own_cluster = None
-    if client is None and workers != 0:
-        from ..cluster import connect
-
-        client, own_cluster = connect(scheduler, workers)
+    if connecting is not None:
+        client, own_cluster = connecting.result()
     model = spec  # the SPEC's own estimates: the model's parameters, without the start unknowns
     if spec.options["fit_start"] and spec.options["stage"] != "equation-error":
         unknowns = [u for e, p in zip(spec.experiments, payloads, strict=True) for u in start_unknowns(e, p.start)]
@@ -101,7 +111,7 @@ def fit(
             say(f"fit: the start state of the joints moving at the first sample is fitted too: {_names(unknowns)}")
     try:
         _probe(model, payloads, fmu_data, digest)
-        evaluator = Evaluator(fmu_data, digest, payloads, client)
+        evaluator = Evaluator(fmu_data, digest, payloads, client, fmu_sent=connecting is not None)
         problem = Problem(spec, evaluator)
         # Multiple shooting restarts each segment from the measured q, q' of every flexible and
         # motor joint (a rotor turned to carry its link's load: stickslip.fit.start).

@@ -89,7 +89,8 @@ class Transform:
 class Evaluator:
     """Runs experiments for parameter sets, on a Dask client or in this process."""
 
-    def __init__(self, fmu_data: bytes, digest: str, payloads: list, client=None):
+    def __init__(self, fmu_data: bytes, digest: str, payloads: list, client=None, fmu_sent: bool = False):
+        """``fmu_sent``: :meth:`send_fmu` has already run on ``client``."""
         self.digest = digest
         self.client = client
         self.fmu_data = fmu_data
@@ -101,10 +102,16 @@ class Evaluator:
         # start runs ahead of the others (stickslip.fit.solve.run_starts).
         self.priority = threading.local()
         if client is not None:
-            from ..sweep import FmuPlugin
-
-            client.register_plugin(FmuPlugin(fmu_data, digest))
+            if not fmu_sent:
+                Evaluator.send_fmu(client, fmu_data, digest)
             self.remote = client.scatter(payloads, broadcast=True)
+
+    @staticmethod
+    def send_fmu(client, fmu_data: bytes, digest: str) -> None:
+        """The FMU to every worker of ``client`` (and those that join later), unpacked there."""
+        from ..sweep import FmuPlugin
+
+        client.register_plugin(FmuPlugin(fmu_data, digest))
 
     def map(self, jobs: list, sensitivities: list | None = None) -> list:
         """jobs: (experiment index, parameters, Segments or None) -> RunResults, in order; with
