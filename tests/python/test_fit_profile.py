@@ -46,8 +46,8 @@ def _linear(A, b, bounds):
 def test_a_linear_models_profile_interval_is_the_standard_errors_1_96_times():
     """For r = Aθ − b the profile cost is cost0 + ½δ²/C_jj exactly (C = (AᵀA)⁻¹) and the one
     Gauss-Newton step of the others is exact, so the interval's ends are θ̂_j ± 1.96 SE_j: the
-    walk brackets the crossing between the doublings of one SE and two, and regula falsi in δ²
-    meets it with its first point, to rounding."""
+    walk's first point, at 2 SE, lies outside, and regula falsi in δ² from the optimum meets
+    the crossing with its first point, to rounding."""
     rng = np.random.default_rng(3)
     A = rng.normal(size=(40, 3)) @ np.diag([1.0, 30.0, 0.2])
     b = rng.normal(size=40)
@@ -68,9 +68,9 @@ def test_a_linear_models_profile_interval_is_the_standard_errors_1_96_times():
         assert abs((high - theta[j]) - exact) <= resolution, (j, high - theta[j], exact)
         assert got[j]["open"] == [False, False]
         assert abs(got[j]["std_error_profile"] * 1.96 - exact) <= resolution
-        # doubling 1 SE (inside), 2 SE (outside), then the refinements: two runs each; the second
-        # refinement is skipped where the first lands on the crossing to the last bit
-        assert 2 * 2 * (2 + 1) <= got[j]["runs"] <= 2 * 2 * (2 + REFINEMENTS)
+        # 2 SE (outside), then the refinements: two runs each, a side; the second refinement is
+        # skipped where the first lands on the crossing to the last bit
+        assert 2 * 2 * (1 + 1) <= got[j]["runs"] <= 2 * 2 * (1 + REFINEMENTS)
 
 
 def test_a_bound_inside_the_interval_leaves_that_side_open_at_the_bound():
@@ -146,4 +146,4 @@ def test_a_lower_point_on_a_profile_is_seen():
     lowest = Lowest(0.045)
     profile_intervals(problem, theta, 0.045, A, np.eye(2), {0: (0.25, 1.92)}, lowest)
     assert lowest.cost < 0.045 and lowest.theta is not None
-    assert abs(lowest.theta[0] - 0.25) < 1e-12  # the first point of the upper walk, one SE along
+    assert abs(lowest.theta[0] - 0.5) < 1e-12  # the first point of the upper walk, two SE along

@@ -125,7 +125,7 @@ def _crossing(inside: tuple, outside: tuple) -> float:
 
 def _profile_side(problem: Problem, theta, cost0: float, J, C, j: int, se_j: float, threshold: float, side: float):
     """A generator of one side of θ_j's 95 % profile interval (yields points, is sent their
-    (cost, residual), :func:`_drive`): walk in doubling steps of one SE until the profile cost
+    (cost, residual), :func:`_drive`): walk in doubling steps from two SE until the profile cost
     passes ``threshold`` above ``cost0`` (or a bound stops it), then refine the bracket by
     REFINEMENTS points of regula falsi in δ² (Illinois: the end kept twice in a row has its
     excess halved, so a curved cost cannot hold one end forever). Returns (end, open): open
@@ -141,7 +141,11 @@ def _profile_side(problem: Problem, theta, cost0: float, J, C, j: int, se_j: flo
 
     limit = (est.low - theta[j]) if side < 0 else (est.high - theta[j])
     inside, outside, bounded = (0.0, -threshold), None, False
-    delta = se_j
+    # The walk begins at 2 SE: a parabola crosses the threshold at 1.96 SE·sqrt(inflation), so
+    # a point at 1 SE (the walk before) only narrowed a bracket that regula falsi from the
+    # optimum (g = −threshold) closes exactly for a parabola; where the reported SE is the
+    # classical one, the point is the quadratic check's and its run is remembered.
+    delta = 2.0 * se_j
     for _ in range(MAX_DOUBLINGS):
         if abs(delta) >= abs(limit):
             delta, bounded = abs(limit), True

@@ -259,7 +259,7 @@ def local_fit(problem: Problem, z0, segment: float | None, options: dict, max_nf
 STEP_FACTORS = (1.0, 0.3, 0.1, 0.03)
 
 
-def refine(problem: Problem, z, options: dict, start=None, nfev: int = 0) -> tuple:
+def refine(problem: Problem, z, options: dict, start=None, nfev: int = 0, factors=STEP_FACTORS) -> tuple:
     """Single shooting from z with a Jacobian step going from ``diff_step`` down by STEP_FACTORS
     while each finer step still lowers the cost by more than ½ (implicit filtering, Kelley):
     (the last OptimizeResult, evaluations so far).
@@ -272,11 +272,12 @@ def refine(problem: Problem, z, options: dict, start=None, nfev: int = 0) -> tup
     against 5278.1 after 3e-4 (the truth: 5287.8), every estimate moved to within 0.3 % of
     the truth. Each stage starts where the last ended; the best stage's step is the one the
     uncertainty's Jacobian takes (``res.step_factor``). With the FMU's sensitivities
-    (``[options] jacobian``) there is no step to refine, and one stage is taken."""
+    (``[options] jacobian``) there is no step to refine, and one stage is taken. ``factors``:
+    the steps to go through (a refit from an answer whose step is known takes that one only)."""
     best = None
     # Sensitivities have no step to refine: one stage (the differences of a column whose event
     # pattern changes within their step take diff_step).
-    for factor in STEP_FACTORS[:1] if problem.exact_jacobians else STEP_FACTORS:
+    for factor in factors[:1] if problem.exact_jacobians else factors:
         step = factor * options["diff_step"]
         res, hist = local_fit(problem, z if best is None else best.x, None, dict(options, diff_step=step))
         nfev += res.nfev
