@@ -20,12 +20,23 @@ import math
 import random
 import threading
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from stickslip.fit.solve import BEHIND, MEET, SETTLED, StartResult, _Meeting, settled
+from stickslip.fit.solve import (
+    BEHIND,
+    MEET,
+    SETTLED,
+    STEP_FACTORS,
+    StartResult,
+    _continued,
+    _Meeting,
+    settled,
+    single_factors,
+)
 from stickslip.fit.uncertainty import robust_cost
 
 
@@ -231,3 +242,21 @@ def test_a_start_merged_into_one_later_abandoned_stays_merged():
     assert meeting.after_stage(lead, 1, 0.3, lambda line: None)
     assert not meeting.after_stage(kept, 1, 0.3, lambda line: None) and kept.status == "abandoned"
     assert not meeting.revive(merged, lambda line: None) and merged.status == "merged"
+
+
+@pytest.mark.parametrize(("continuation_cost", "from_continuation"), [(7.0, True), (10.0, True), (12.0, False)])
+def test_single_shooting_skips_the_coarsest_step_only_from_where_the_continuation_ended(
+    continuation_cost, from_continuation
+):
+    """A start whose continuation ended at a single-shooting cost no higher than its start
+    point's goes on from there with the steps after the coarsest; one that goes back to its
+    start point (the continuation made it worse) takes them all, as does a start never
+    continued (a revived or single-shooting start)."""
+    s = _start("equation-error", 10.0, [0.5, 0.5])
+    assert single_factors(s) == STEP_FACTORS  # not continued
+    _continued(SimpleNamespace(cost=lambda z: continuation_cost), s)
+    assert s.from_continuation is from_continuation
+    if from_continuation:
+        assert np.array_equal(s.z, [0.5, 0.5]) and single_factors(s) == STEP_FACTORS[1:]
+    else:
+        assert s.z is s.z_start and single_factors(s) == STEP_FACTORS

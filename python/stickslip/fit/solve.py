@@ -54,6 +54,7 @@ class StartResult:
     ms_cost: float | None = None  # the last multiple-shooting stage's cost
     start_cost: float = math.inf  # the single-shooting cost at the start point
     continuation_cost: float | None = None  # … where the continuation ended
+    from_continuation: bool = False  # single shooting goes on from where the continuation ended
     step: float | None = None  # the Jacobian step single shooting ended with
     nfev: int = 0
     status: str = ""
@@ -351,12 +352,25 @@ def _continued(problem: Problem, start: StartResult) -> None:
     """The single-shooting cost where the continuation ended; single shooting goes on from the
     start point instead where that is lower."""
     start.continuation_cost = problem.cost(start.z)
-    if not start.continuation_cost <= start.start_cost:
+    start.from_continuation = start.continuation_cost <= start.start_cost
+    if not start.from_continuation:
         start.z = start.z_start  # the continuation made the simulation error worse
 
 
+def single_factors(start: StartResult) -> tuple:
+    """The Jacobian steps (fractions of ``diff_step``) single shooting goes through from
+    ``start``: all of STEP_FACTORS from a start point, from the second on from where the
+    continuation ended. The coarsest step smooths the roughness of a cost far from its minimum;
+    the continuation's end lies in the minimum's basin already, where that step's secant is
+    hundreds of standard errors wide. Measured on the identification benchmark (seeds 100 and
+    200, 30 fits): the same answers (every cost to 0.01 but one, both below the truth's), the
+    same fits at the truth's minimum, 7993 runs against 8941; the calibration example 708 runs
+    against 772."""
+    return STEP_FACTORS[1:] if start.from_continuation else STEP_FACTORS
+
+
 def _single_stage(problem: Problem, start: StartResult, options: dict, say) -> None:
-    res, start.nfev = refine(problem, start.z, options, start, start.nfev)
+    res, start.nfev = refine(problem, start.z, options, start, start.nfev, single_factors(start))
     start.z, start.cost = res.x, float(res.cost)
     start.step = res.step_factor * options["diff_step"]
     start.status, start.message = ("converged" if res.status > 0 else "stopped"), res.message
