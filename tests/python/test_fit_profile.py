@@ -16,7 +16,7 @@ import pytest
 from scipy.stats import chi2
 
 from stickslip.fit.problem import Transform
-from stickslip.fit.profile import REFINEMENTS, Lowest, _crossing, _drive, _profile_side, profile_intervals
+from stickslip.fit.profile import REFINEMENTS, Lowest, _crossing, _drive, _profile_side, profile_intervals, profiles
 from stickslip.fit.spec import Estimate
 
 
@@ -147,3 +147,27 @@ def test_a_lower_point_on_a_profile_is_seen():
     profile_intervals(problem, theta, 0.045, A, np.eye(2), {0: (0.25, 1.92)}, lowest)
     assert lowest.cost < 0.045 and lowest.theta is not None
     assert abs(lowest.theta[0] - 0.5) < 1e-12  # the first point of the upper walk, two SE along
+
+
+def test_the_walks_begin_at_the_quadratic_checks_points():
+    """profiles(): the first point of each μ_s walk is the quadratic check's point at 2
+    classical SE, bit for bit, so the problem's memory of recent runs serves it; with the
+    sandwich SE larger, the interval is wider than the classical one by its inflation."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(30, 2))
+    b = rng.normal(size=30)
+    estimates = [Estimate("mu_s[1]", 0.0, -100.0, 100.0), Estimate("k[1]", 0.0, -100.0, 100.0)]
+    problem = ClosedForm(lambda theta: A @ theta - b, estimates)
+    theta = np.linalg.lstsq(A, b, rcond=None)[0]
+    r0 = A @ theta - b
+    cost0 = 0.5 * float(r0 @ r0)
+    classical = np.sqrt(np.diag(np.linalg.inv(A.T @ A)))
+    unc = SimpleNamespace(std_error_classical=classical, std_error_sandwich=1.5 * classical, std_error=1.5 * classical)
+    got = profiles(problem, theta, cost0, A, unc, 1.0)
+    check, first = problem.asked[0], problem.asked[1]
+    assert len(check) == 4 and len(first) == 2  # ±2 SE of both; the μ_s walk's two sides
+    assert np.array_equal(first[0], check[0]) and np.array_equal(first[1], check[1])
+    low, high = got["mu_s[1]"]["interval_95"]
+    exact = 1.959964 * 1.5 * classical[0]  # the threshold inflated by (sandwich/classical)²
+    assert abs((theta[0] - low) - exact) < 1e-5 * exact and abs((high - theta[0]) - exact) < 1e-5 * exact
+    assert "k[1]" not in got  # quadratic: not profiled

@@ -143,8 +143,8 @@ def _profile_side(problem: Problem, theta, cost0: float, J, C, j: int, se_j: flo
     inside, outside, bounded = (0.0, -threshold), None, False
     # The walk begins at 2 SE: a parabola crosses the threshold at 1.96 SE·sqrt(inflation), so
     # a point at 1 SE (the walk before) only narrowed a bracket that regula falsi from the
-    # optimum (g = −threshold) closes exactly for a parabola; where the reported SE is the
-    # classical one, the point is the quadratic check's and its run is remembered.
+    # optimum (g = −threshold) closes exactly for a parabola; with the classical SE as the
+    # unit (:func:`profiles`), the point is the quadratic check's and its run is remembered.
     delta = 2.0 * se_j
     for _ in range(MAX_DOUBLINGS):
         if abs(delta) >= abs(limit):
@@ -243,7 +243,10 @@ def profiles(problem: Problem, theta, cost0: float, J, unc, scale: float, lowest
             continue
         inflation = max(1.0, (unc.std_error_sandwich[j] / unc.std_error_classical[j]) ** 2)
         threshold = 0.5 * float(chi2.ppf(0.95, 1)) * scale * inflation
-        wanted[j] = (float(unc.std_error[j]), threshold)
+        # The walk's unit is the standard error the quadratic check stepped by, so its first
+        # points (2 units out) are the check's own, whose runs the problem remembers.
+        classical = float(unc.std_error_classical[j])
+        wanted[j] = (classical if math.isfinite(classical) and classical > 0 else float(unc.std_error[j]), threshold)
         ratio_of[j] = (ratio, quadratic)
     out = {}
     for j, entry in profile_intervals(problem, theta, cost0, J, C, wanted, lowest).items():
