@@ -3,7 +3,7 @@ profile is known in closed form, and the side-by-side walk against each walk alo
 
 The problems here are residual functions of θ written out in numpy, standing in for the FMU's
 runs: the profile's arithmetic (the path, the others' Gauss-Newton step, the doubling walk and
-its bisection) is what is tested, and it sees nothing of the FMU but (cost, residual) per point.
+its regula falsi) is what is tested, and it sees nothing of the FMU but (cost, residual) per point.
 """
 
 from __future__ import annotations
