@@ -135,7 +135,9 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
                 means = ok.groupby(p)[m].mean()
                 ax.plot(means.index, means.to_numpy(), color="tab:red", lw=1.2, marker="o", ms=3, label="mean")
             value = rho.loc[m, p]
-            ax.set_title(f"|ρ| = {value:.2f}" if not math.isnan(value) else "", fontsize=8, loc="right")
+            # y given: the title stays at the top edge, where matplotlib would otherwise look for
+            # tick labels above the axes on every draw (3.4 s of a 10 x 9 figure's 6 s).
+            ax.set_title(f"|ρ| = {value:.2f}" if not math.isnan(value) else "", fontsize=8, loc="right", y=1.0)
             ax.tick_params(labelsize=7)
             ax.grid(True, alpha=0.3)
             if r == len(shown) - 1:
@@ -151,7 +153,7 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
             ax.set_xlim(0, 1)
             ax.tick_params(labelsize=7)
             if r == 0:
-                ax.set_title("sensitivity |Spearman ρ|", fontsize=8)
+                ax.set_title("sensitivity |Spearman ρ|", fontsize=8, y=1.0)
     counts = ", ".join(f"{n} {s}" for s, n in rows["status"].value_counts().items())
     title = f"{len(rows)} variants ({counts}); points: variants with status ok" + (
         "; red: mean per grid value" if spec.grid else ""
