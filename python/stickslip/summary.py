@@ -71,6 +71,18 @@ def sensitivity(ok, parameters, metrics):
 
 
 def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) -> None:
+    """summary.png: :func:`figure`, saved."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(rows, spec, metrics, threshold)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def figure(rows, spec, metrics: list, threshold: float | None = None):
+    """The summary figure (a matplotlib Figure, on the Agg backend): a metric per row, a
+    parameter per column, each variant with status ok a point; the last column ranks the
+    parameters by |Spearman ρ| with the row's metric."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -102,6 +114,12 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
             if c > 0:
                 axes[r][c].sharey(axes[r][0])
             axes[r][c].label_outer()
+    # At most 4 ticks a side, small values with a power of ten: a panel is 2.6 inches wide, and
+    # the default's 6 labels of a clearance (0.0000, 0.0002, …) ran into each other. Shared axes
+    # share their locator and formatter, so the first row and column set them for all.
+    for ax in [*axes[0][: len(params)], *(axes[r][0] for r in range(len(shown)))]:
+        ax.locator_params(nbins=4)
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
     from .convergence import DEFAULT_THRESHOLD
 
     threshold = DEFAULT_THRESHOLD if threshold is None else threshold
@@ -172,8 +190,7 @@ def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) 
             loc="lower right",
             fontsize=8,
         )
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    return fig
 
 
 def _fmt(x) -> str:
