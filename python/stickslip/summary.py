@@ -72,9 +72,9 @@ def sensitivity(ok, parameters, metrics):
 
 def plot(rows, spec, metrics: list, path: Path, threshold: float | None = None) -> None:
     """summary.png: :func:`figure`, saved."""
+    fig = figure(rows, spec, metrics, threshold)  # it chooses the Agg backend before pyplot loads
     import matplotlib.pyplot as plt
 
-    fig = figure(rows, spec, metrics, threshold)
     fig.savefig(path, dpi=80)
     plt.close(fig)
 
